@@ -1,0 +1,79 @@
+"""Shared validation of public inputs: one-line ValueErrors that name the problem."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+
+def to_numpy(x, dtype=None) -> np.ndarray:
+    """Tensor or array-like -> numpy array (detached, on CPU)."""
+    if isinstance(x, torch.Tensor):
+        x = x.detach().cpu().numpy()
+    x = np.asarray(x)
+    return x.astype(dtype, copy=False) if dtype is not None else x
+
+
+def check_verts(verts, name: str = "verts") -> np.ndarray:
+    """Validate vertex positions: [V, 3] finite floats, V >= 1.
+
+    Returns:
+        [V, 3] float64 numpy array.
+    """
+    v = to_numpy(verts)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"{name} must be [V, 3], got {list(v.shape)}")
+    if v.shape[0] == 0:
+        raise ValueError(f"{name} is empty (no vertices)")
+    if not np.issubdtype(v.dtype, np.number):
+        raise ValueError(f"{name} must be numeric, got {v.dtype}")
+    v = v.astype(np.float64, copy=False)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name} has {int(bad.sum())} vertices with NaN or inf coordinates "
+                         f"(first at index {int(np.flatnonzero(bad)[0])})")
+    return v
+
+
+def check_faces(faces, n_verts: int, name: str = "faces") -> np.ndarray:
+    """Validate triangle indices: [F, 3] integers in [0, n_verts), F >= 1.
+
+    Returns:
+        [F, 3] int64 numpy array.
+    """
+    f = to_numpy(faces)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise ValueError(f"{name} must be [F, 3] (triangles), got {list(f.shape)}")
+    if f.shape[0] == 0:
+        raise ValueError(f"{name} is empty (no triangles); pass faces=None for a point cloud")
+    if not np.issubdtype(f.dtype, np.integer):
+        if np.issubdtype(f.dtype, np.floating) and np.all(np.mod(f, 1) == 0):
+            f = f.astype(np.int64)
+        else:
+            raise ValueError(f"{name} must hold integer vertex indices, got {f.dtype}")
+    f = f.astype(np.int64, copy=False)
+    lo, hi = int(f.min()), int(f.max())
+    if lo < 0 or hi >= n_verts:
+        raise ValueError(f"{name} index out of range: indices span [{lo}, {hi}] but there are "
+                         f"{n_verts} vertices")
+    return f
+
+
+def face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """[F] triangle areas."""
+    e1 = verts[faces[:, 1]] - verts[faces[:, 0]]
+    e2 = verts[faces[:, 2]] - verts[faces[:, 0]]
+    return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+
+
+def check_mesh(verts, faces) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a triangle mesh; returns (verts [V,3] float64, faces [F,3] int64) numpy arrays.
+
+    Raises:
+        ValueError: wrong shapes, NaN/inf coordinates, indices out of range, zero total area.
+    """
+    v = check_verts(verts)
+    f = check_faces(faces, v.shape[0])
+    area = float(face_areas(v, f).sum())
+    if not np.isfinite(area) or area <= 0.0:
+        raise ValueError(f"mesh has zero total area ({v.shape[0]} vertices, {f.shape[0]} faces)")
+    return v, f

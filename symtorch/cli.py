@@ -1,0 +1,190 @@
+"""The ``symtorch`` command line: ``detect``, ``info`` (and the sub-commands registered below).
+
+Progress goes to stderr; results to stdout or ``--out``. Any bad input ends with one line
+``symtorch: error: <what>`` on stderr and exit status 2, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+
+__all__ = ["main", "build_parser", "load_shape", "write_json_atomic"]
+
+log = logging.getLogger("symtorch")
+
+
+class CLIError(Exception):
+    """An error to report as one line with a non-zero exit."""
+
+
+def _progress(msg: str) -> None:
+    print(f"symtorch: {msg}", file=sys.stderr, flush=True)
+
+
+def load_shape(path: str | None, demo: str | None = None):
+    """(verts [V, 3], faces [F, 3] or None, label) from a mesh file or a built-in shape name."""
+    if demo is not None:
+        from . import shapes
+        if demo not in shapes.SHAPES:
+            raise CLIError(f"unknown demo shape {demo!r}; choose from {', '.join(shapes.SHAPES)}")
+        v, f = shapes.SHAPES[demo]()
+        return v, f, f"demo:{demo}"
+    if path is None:
+        raise CLIError("give a mesh file, or --demo [NAME] for a built-in shape")
+    from .io import read_mesh
+    mesh = read_mesh(path)
+    return mesh.verts, mesh.faces, path
+
+
+def write_json_atomic(path: str, obj) -> None:
+    """Write ``obj`` as JSON to ``path`` via a temporary file and a rename (never half-written)."""
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".json")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(obj, fh)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _cmd_detect(args) -> int:
+    import torch
+
+    from .detect import detect_symmetries
+    t0 = time.perf_counter()
+    verts, faces, label = load_shape(args.mesh, args.demo)
+    if faces is None:
+        raise CLIError(f"{label}: is a point cloud (no faces); symmetry detection needs a triangle mesh")
+    _progress(f"{label}: {len(verts)} vertices, {len(faces)} faces")
+    kw = {}
+    if args.k is not None:
+        kw["k"] = args.k
+    if args.k_refine is not None:
+        kw["k_refine"] = args.k_refine
+    res = detect_symmetries(verts, faces, mode=args.mode, **kw)
+    out = {"mesh": label, **res.to_dict()}
+    out["timings"]["read"] = round(time.perf_counter() - t0 - sum(res.timings.values()), 4)
+    out["timings"]["total"] = round(time.perf_counter() - t0, 4)
+    names = ", ".join(f"{s['kind']}({s['score']:.2f})" for s in out["symmetries"])
+    grp = out["group"]
+    _progress(f"group {grp.get('name')} of order {grp.get('order')}: {names}")
+    _progress("timings " + " ".join(f"{k}={v:.3f}s" for k, v in out["timings"].items()))
+    if args.matrices:
+        d = os.path.dirname(os.path.abspath(args.matrices))
+        os.makedirs(d, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".npz")
+        os.close(fd)
+        np.savez(tmp, C=res.fmaps.cpu().numpy(), p2p=res.p2ps.cpu().numpy(),
+                 k=np.int64(res.fmaps.shape[-1]), evals=res.spectrum.evals[: res.fmaps.shape[-1]].cpu().numpy(),
+                 kinds=np.array([s.kind for s in res.symmetries]))
+        os.replace(tmp, args.matrices)
+        _progress(f"matrices -> {args.matrices}")
+    if args.out:
+        write_json_atomic(args.out, out)
+        _progress(f"result -> {args.out}")
+    else:
+        json.dump(out, sys.stdout)
+        sys.stdout.write("\n")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from .io import mesh_report
+    from .spectrum import eigen_bands, laplacian_spectrum
+    verts, faces, label = load_shape(args.mesh, args.demo)
+    rep = mesh_report(verts, faces)
+    info = {"mesh": label, **{k: (v.item() if hasattr(v, "item") else v) for k, v in rep.items()}}
+    if args.k > 0:
+        spec = laplacian_spectrum(verts, faces, k=args.k)
+        info["scale"] = float(spec.scale)
+        info["eigenvalues"] = [round(float(x), 6) for x in spec.evals]
+        info["bands"] = [[b.start, b.stop] for b in eigen_bands(spec.evals)]
+    if args.json:
+        json.dump(info, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        for key, val in info.items():
+            print(f"{key:>22}: {val}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="symtorch", description=__doc__.splitlines()[0])
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging on stderr")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("detect", help="find the intrinsic symmetries of a mesh; JSON result")
+    d.add_argument("mesh", nargs="?", help="mesh file (OFF, OBJ, PLY, ...)")
+    d.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME",
+                   help="use a built-in shape instead of a file (default mirror_blob)")
+    d.add_argument("--out", help="write the JSON here instead of stdout")
+    d.add_argument("--matrices", help="write the C matrices, maps and basis size to this .npz")
+    d.add_argument("--k", type=int, default=None, help="coarse basis size (snapped to a band end)")
+    d.add_argument("--k-refine", type=int, default=None, help="refined basis size (snapped to a band end)")
+    d.add_argument("--mode", choices=["auto", "reflection", "group"], default="auto")
+    d.set_defaults(func=_cmd_detect)
+
+    i = sub.add_parser("info", help="mesh statistics, first eigenvalues and bands")
+    i.add_argument("mesh", nargs="?")
+    i.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME")
+    i.add_argument("--k", type=int, default=20, help="eigenvalues to compute (0: none)")
+    i.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    i.set_defaults(func=_cmd_info)
+
+    for register in _EXTRA_COMMANDS:
+        register(sub)
+    return p
+
+
+def _register_optional():
+    """Sub-commands living in their own modules (precompute, show) register themselves here."""
+    regs = []
+    for mod in ("precompute", "show"):
+        try:
+            m = __import__(f"symtorch.{mod}", fromlist=["register_cli"])
+        except ImportError:
+            continue
+        if hasattr(m, "register_cli"):
+            regs.append(m.register_cli)
+    return regs
+
+
+_EXTRA_COMMANDS: list = []
+
+
+def main(argv=None) -> int:
+    _EXTRA_COMMANDS[:] = _register_optional()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="symtorch: %(levelname)s: %(message)s", stream=sys.stderr)
+    warnings.simplefilter("default")
+    warnings.formatwarning = lambda msg, cat, *a, **k: f"symtorch: warning: {msg}\n"
+    try:
+        return int(args.func(args) or 0)
+    except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
+        msg = " ".join(str(e).split()) or type(e).__name__
+        print(f"symtorch: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("symtorch: error: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print("symtorch: error: out of memory", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

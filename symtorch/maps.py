@@ -1,0 +1,75 @@
+"""Point-to-point maps and functional maps in a Laplace–Beltrami basis (ALGORITHM §2).
+
+A symmetry ``g`` is a vertex map ``p2p [V]`` (``p2p[i]`` is the image of vertex ``i``) and its matrix is
+the pull-back ``C = evecs.T @ (mass[:, None] * evecs[p2p])``, so that rows move as
+``evecs[p2p] ≈ evecs @ C``. Composition and inverses live in :mod:`symtorch.groups`.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+_KDTREE_MAX_DIM = 48  # above this, brute-force blocked distances beat a KD-tree
+
+
+def p2p_to_fmap(p2p: Tensor, evecs: Tensor, mass: Tensor, evecs_src: Tensor | None = None) -> Tensor:
+    """Functional map (pull-back) of a vertex map.
+
+    Args:
+        p2p: [..., V] long, image of each vertex.
+        evecs: [V, K] mass-orthonormal basis of the shape the images live on.
+        mass: [V] lumped mass of the domain.
+        evecs_src: [V, K'] basis of the domain (defaults to ``evecs``, a self-map).
+
+    Returns:
+        [..., K', K] ``evecs_src.T @ (mass[:, None] * evecs[p2p])``.
+    """
+    src = evecs if evecs_src is None else evecs_src
+    if p2p.shape[-1] != src.shape[0]:
+        raise ValueError(f"p2p has {p2p.shape[-1]} entries but the domain has {src.shape[0]} vertices")
+    return (src * mass[:, None]).mT @ evecs[p2p]
+
+
+def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Tensor:
+    """Index of the nearest row of ``points`` for each row of ``queries``.
+
+    Args:
+        queries: [N, D].
+        points: [M, D].
+
+    Returns:
+        [N] long, on the device of ``queries``. A KD-tree on CPU for small D, else blocked ``cdist``.
+    """
+    if queries.device.type == "cpu" and queries.shape[-1] <= _KDTREE_MAX_DIM:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(points.detach().double().numpy())
+        _, idx = tree.query(queries.detach().double().numpy(), k=1, workers=-1)
+        return torch.as_tensor(np.asarray(idx, dtype=np.int64))
+    out = torch.empty(queries.shape[0], dtype=torch.long, device=queries.device)
+    sq = points.square().sum(-1)  # [M]
+    for s in range(0, queries.shape[0], chunk):
+        q = queries[s:s + chunk]
+        d = sq[None, :] - 2 * q @ points.mT  # ||q||^2 is constant per row
+        out[s:s + chunk] = d.argmin(-1)
+    return out
+
+
+def fmap_to_p2p(C: Tensor, evecs: Tensor, evecs_src: Tensor | None = None) -> Tensor:
+    """Vertex map of a functional map: ``p2p[i] = argmin_j ||evecs[j] - evecs_src[i] @ C||``.
+
+    Args:
+        C: [K', K] or [B, K', K] pull-back functional map(s).
+        evecs: [V, K] basis of the image shape.
+        evecs_src: [V', K'] basis of the domain (defaults to ``evecs``, a self-map).
+
+    Returns:
+        [V'] or [B, V'] long.
+    """
+    src = evecs if evecs_src is None else evecs_src
+    if C.shape[-2] != src.shape[-1] or C.shape[-1] != evecs.shape[-1]:
+        raise ValueError(f"C must be [{src.shape[-1]}, {evecs.shape[-1]}], got {list(C.shape)}")
+    if C.dim() == 3:
+        return torch.stack([nearest_neighbors(src @ c, evecs) for c in C])
+    return nearest_neighbors(src @ C, evecs)

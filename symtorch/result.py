@@ -1,0 +1,80 @@
+"""Result types of symmetry detection."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from .spectrum import Spectrum
+
+
+@dataclass(frozen=True)
+class Symmetry:
+    """One detected symmetry.
+
+    Attributes:
+        C: [K, K] block-orthogonal pull-back matrix (ALGORITHM §2).
+        p2p: [V] long, ``p2p[i]`` is the image of vertex ``i``.
+        kind: 'identity' | 'reflection' | 'rotation' | 'rotoreflection'.
+        order: smallest n with ``C^n ≈ I``.
+        score: confidence in [0, 1]; higher is better.
+    """
+
+    C: Tensor
+    p2p: Tensor
+    kind: str
+    order: int
+    score: float
+
+
+@dataclass(frozen=True)
+class SymmetryResult:
+    """Every symmetry found on one shape, identity first, then best first.
+
+    Attributes:
+        symmetries: the group elements.
+        spectrum: the basis the matrices live in (``evecs [V, K]``).
+        bands: eigenvalue bands of the basis (index ranges, covering ``0..K-1``).
+        group: name, order, table, inverses, orders (``symtorch.groups`` ``GroupInfo.to_dict()``), or {}.
+        continuous: True when the shape has a continuous symmetry (then ``symmetries`` is the identity).
+        timings: seconds per stage.
+        info: diagnostics (candidate counts, scores of rejected candidates, ...).
+    """
+
+    symmetries: list[Symmetry]
+    spectrum: Spectrum
+    bands: list[range]
+    group: dict[str, Any] = field(default_factory=dict)
+    continuous: bool = False
+    timings: dict[str, float] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def fmaps(self) -> Tensor:
+        """[G, K, K] the matrices, identity first."""
+        return torch.stack([s.C for s in self.symmetries])
+
+    @property
+    def p2ps(self) -> Tensor:
+        """[G, V] the vertex maps, identity first."""
+        return torch.stack([s.p2p for s in self.symmetries])
+
+    @property
+    def reflection(self) -> Symmetry | None:
+        """The best orientation-reversing involution, if any."""
+        return next((s for s in self.symmetries if s.kind == "reflection"), None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no matrices): the schema of ``symtorch detect``."""
+        return {
+            "n_vertices": int(self.spectrum.evecs.shape[0]),
+            "k": int(self.spectrum.evecs.shape[1]),
+            "bands": [[b.start, b.stop] for b in self.bands],
+            "continuous": self.continuous,
+            "symmetries": [{"kind": s.kind, "order": s.order, "score": round(float(s.score), 6),
+                            "p2p": s.p2p.tolist()} for s in self.symmetries],
+            "group": self.group or {"order": len(self.symmetries), "name": None},
+            "timings": {k: round(v, 4) for k, v in self.timings.items()},
+        }

@@ -1,0 +1,18 @@
+"""Shapes built in code with known symmetries, shared by the tests."""
+import numpy as np
+import torch
+
+from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
+
+
+def mirror_mesh(subdivisions: int = 2, dtype=torch.float64):
+    """A bumpy sphere, mirror-symmetric in x by construction: (verts, faces, mirror permutation).
+
+    The icosphere's vertex set and connectivity are symmetric under x -> -x, and the bumps are placed
+    in mirror pairs, so ``mirror`` (found by nearest neighbour on the sphere) is an exact automorphism.
+    No other symmetry: the bumps and the anisotropic stretch break them.
+    """
+    verts, f = mirror_blob(subdivisions)
+    mirror = symmetry_maps(verts, true_symmetries("mirror_blob"))[1]
+    return (torch.tensor(verts, dtype=dtype), torch.tensor(f, dtype=torch.long),
+            torch.tensor(mirror, dtype=torch.long))
