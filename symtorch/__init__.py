@@ -10,6 +10,7 @@ Quick start::
 """
 __version__ = "0.1.0"
 
+from .cache import cached_spectrum, spectrum_key
 from .descriptors import descriptors, hks, wks
 from .detect import detect_symmetries
 from .groups import (cayley_table, check_group, closure, compose_fmap, compose_p2p, element_orders,

@@ -73,7 +73,11 @@ def check_mesh(verts, faces) -> tuple[np.ndarray, np.ndarray]:
     """
     v = check_verts(verts)
     f = check_faces(faces, v.shape[0])
-    area = float(face_areas(v, f).sum())
-    if not np.isfinite(area) or area <= 0.0:
+    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: reported below
+        area = float(face_areas(v, f).sum())
+    if not np.isfinite(area):
+        raise ValueError(f"mesh area overflows float64 (coordinates up to {np.abs(v).max():.3g}); "
+                         "rescale the mesh")
+    if area <= 0.0:
         raise ValueError(f"mesh has zero total area ({v.shape[0]} vertices, {f.shape[0]} faces)")
     return v, f

@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["main", "build_parser", "load_shape", "write_json_atomic"]
+__all__ = ["main", "build_parser", "load_shape", "write_json_atomic", "run_detector"]
 
 log = logging.getLogger("symtorch")
 
@@ -59,10 +59,33 @@ def write_json_atomic(path: str, obj) -> None:
         raise
 
 
+def run_detector(verts, faces, label: str, **kw):
+    """``detect_symmetries`` for the CLI: input it cannot handle and its crashes become one line."""
+    from .detect import detect_symmetries
+    from .io import mesh_report
+    if faces is None:
+        raise CLIError(f"{label}: is a point cloud (no faces); symmetry detection needs a triangle mesh")
+    rep = mesh_report(verts, faces)
+    if rep["n_components"] > 1:
+        raise CLIError(f"{label}: has {rep['n_components']} connected components; symmetry detection "
+                       "needs one connected surface (detect each part on its own; if the parts come "
+                       "from vertices duplicated along seams, merge them first)")
+    if rep["n_unreferenced"]:
+        raise CLIError(f"{label}: {rep['n_unreferenced']} vertices are referenced by no face; "
+                       "remove them first (symmetry maps are reported per vertex)")
+    try:
+        return detect_symmetries(verts, faces, **kw)
+    except Exception as e:  # noqa: BLE001 -- a detector failure on odd input: one line, -v traceback
+        log.debug("detect_symmetries failed", exc_info=True)
+        hint = (f"; the mesh has only {len(verts)} vertices, too few for the spectral detector "
+                "(subdivide it)" if len(verts) < 100 else "")
+        raise CLIError(f"{label}: symmetry detection failed ({type(e).__name__}: "
+                       f"{' '.join(str(e).split())}){hint}") from None
+
+
 def _cmd_detect(args) -> int:
     import torch
 
-    from .detect import detect_symmetries
     t0 = time.perf_counter()
     verts, faces, label = load_shape(args.mesh, args.demo)
     if faces is None:
@@ -73,7 +96,7 @@ def _cmd_detect(args) -> int:
         kw["k"] = args.k
     if args.k_refine is not None:
         kw["k_refine"] = args.k_refine
-    res = detect_symmetries(verts, faces, mode=args.mode, **kw)
+    res = run_detector(verts, faces, label, mode=args.mode, **kw)
     out = {"mesh": label, **res.to_dict()}
     out["timings"]["read"] = round(time.perf_counter() - t0 - sum(res.timings.values()), 4)
     out["timings"]["total"] = round(time.perf_counter() - t0, 4)
@@ -106,8 +129,11 @@ def _cmd_info(args) -> int:
     verts, faces, label = load_shape(args.mesh, args.demo)
     rep = mesh_report(verts, faces)
     info = {"mesh": label, **{k: (v.item() if hasattr(v, "item") else v) for k, v in rep.items()}}
-    if args.k > 0:
-        spec = laplacian_spectrum(verts, faces, k=args.k)
+    k = min(args.k, len(verts) - 1)  # the eigensolver needs k < V
+    if 0 < k < args.k:
+        _progress(f"{label}: only {len(verts)} vertices; computing {k} eigenvalues, not {args.k}")
+    if k > 0:
+        spec = laplacian_spectrum(verts, faces, k=k)
         info["scale"] = float(spec.scale)
         info["eigenvalues"] = [round(float(x), 6) for x in spec.evals]
         info["bands"] = [[b.start, b.stop] for b in eigen_bands(spec.evals)]
@@ -170,6 +196,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                         format="symtorch: %(levelname)s: %(message)s", stream=sys.stderr)
+    if not args.verbose:  # the reader both logs and warns each mesh problem: print the warning once
+        logging.getLogger("symtorch.io").setLevel(logging.ERROR)
     warnings.simplefilter("default")
     warnings.formatwarning = lambda msg, cat, *a, **k: f"symtorch: warning: {msg}\n"
     try:
@@ -184,6 +212,14 @@ def main(argv=None) -> int:
     except MemoryError:
         print("symtorch: error: out of memory", file=sys.stderr)
         return 2
+    except Exception as e:  # a bug or an unforeseen input: still one line; -v shows the traceback
+        if args.verbose:
+            import traceback
+            traceback.print_exc()
+        msg = " ".join(str(e).split()) or "no message"
+        print(f"symtorch: error: internal error ({type(e).__name__}: {msg}); rerun with -v for the "
+              "traceback", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

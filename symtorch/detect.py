@@ -107,9 +107,10 @@ def _shape_inputs(shape, faces, k, spectrum):
     return verts, faces
 
 
-def detect_symmetries(shape, faces=None, *, k: int = 12, k_refine: int = 60,
+def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
                       spectrum: Spectrum | None = None, mode: str = "auto",
                       n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12, nms_radius: float = 2.0, min_score: float = 0.5,
+                      n_refine: int = 4,
                       generator: torch.Generator | None = None) -> SymmetryResult:
     """Find the global intrinsic symmetries of a triangle mesh.
 
@@ -120,7 +121,16 @@ def detect_symmetries(shape, faces=None, *, k: int = 12, k_refine: int = 60,
         k_refine: target size of the refined basis (snapped to a band end); the matrices returned
             live in this basis.
         spectrum: a precomputed ``laplacian_spectrum(verts, faces, k >= k_refine + margin)``.
-        mode: 'reflection' (ALGORITHM §4), 'group' (§5) or 'auto'.
+        mode: 'reflection' (ALGORITHM §4), 'group' (§5, ``symtorch.group_detect``) or 'auto'.
+            'auto' runs the group path when the low spectrum has repeated eigenvalues at more than one
+            scale (``group_detect.has_multiplicities``: rotations make 2-dimensional eigenspaces all
+            the way up), and keeps its result when it is a continuous symmetry or a verified group of
+            order > 2; otherwise it runs the reflection path and keeps the larger verified group of
+            the two (the reflection path's on a tie). Shapes with a simple spectrum (a single mirror,
+            or none) go straight to the reflection path. The group path uses a coarse basis of
+            ``max(k, 20)`` and refines every element to ``min(k_refine, 40)`` (cost: one refinement
+            per element). Either way ``result.group`` holds the group report
+            (``groups.GroupInfo.to_dict()``) and each ``kind`` follows its order and orientation.
         n_samples: vertices the refinement evaluates the map on.
         n_extrema: most heat-kernel extrema used as candidate points.
         min_score: a candidate whose confidence is below this is not reported.
@@ -133,107 +143,32 @@ def detect_symmetries(shape, faces=None, *, k: int = 12, k_refine: int = 60,
     """
     timer = _Timer()
     verts, faces = _shape_inputs(shape, faces, k, spectrum)
+    if mode not in ("auto", "reflection", "group"):
+        raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
     if spectrum is None:
         spectrum = laplacian_spectrum(verts, faces, k=int(k_refine * 1.3) + 8)
     timer.lap("spectrum")
-    if mode not in ("auto", "reflection", "group"):
-        raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
-    return _detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
+    from .group_detect import detect_group, has_multiplicities, with_group
+    grouped = None
+    if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
+        grouped = detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
+                               timer=timer)
+        if mode == "group" or grouped.continuous or grouped.group["order"] > 2:
+            return grouped
+    result = with_group(_detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
                               n_extrema=n_extrema, nms_radius=nms_radius, block_refine=block_refine, min_score=min_score,
-                              timer=timer)
+                              n_refine=n_refine, timer=timer), verts, faces)
+    if grouped is not None and grouped.group["order"] > result.group["order"]:
+        return grouped
+    return result
 
 
 def _detect_reflection(verts, faces, spectrum, *, k, k_refine, n_samples, n_extrema, nms_radius, block_refine,
-                       min_score, timer):
-    evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
-    bands = eigen_bands(evals)
-    # never use the last band: it may be cut by the eigensolve
-    bands = bands[:-1] if len(bands) > 1 else bands
-    k0 = band_boundary(bands, k)
-    kf = band_boundary(bands, k_refine)
-    V = evecs.shape[0]
-    verts_unit = verts * spectrum.scale
-    solver = GeodesicSolver(verts_unit, faces)
-    # 1. candidate points: HKS maxima at a large time (limb tips)
-    t = 4 * math.log(10) / float(evals[1])
-    h = hks(evals, evecs, torch.tensor([t, t / 4], dtype=evals.dtype))
-    adj = vertex_adjacency(faces, V)
-    ext = []
-    for col in range(h.shape[1]):
-        for v in local_maxima(h[:, col].numpy(), adj, rings=3):
-            if v not in ext:
-                ext.append(int(v))
-    # geodesic non-maximum suppression: one point per limb tip
-    ext = np.array(ext[: 4 * n_extrema])
-    dist_all = torch.as_tensor(np.asarray(solver.distances_from(ext)), dtype=evecs.dtype)
-    keep: list[int] = []
-    for i in range(len(ext)):
-        if all(float(dist_all[j, ext[i]]) > nms_radius * EPS_KLC for j in keep):
-            keep.append(i)
-        if len(keep) == n_extrema:
-            break
-    ext, dist_ext = ext[keep], dist_all[keep]
-    desc = descriptors(evals, evecs)  # [V, D]
-    D_ext = dist_ext[:, ext].numpy()
-    D_ext = 0.5 * (D_ext + D_ext.T)
-    logdesc = torch.log(desc[ext].clamp_min(1e-12)).numpy()
-    cands = symmetric_pairs(ext, logdesc, D_ext)
-    timer.lap("candidates")
-    info = {"n_extrema": int(len(ext)), "n_candidates": len(cands), "k0": k0, "k_refine": kf}
-    bands0 = [b for b in bands if b.stop <= k0]
-    E0 = evecs[:, :k0]
-    Mx = E0 * mass[:, None]
-    # multi-scale geodesic disks around each extremum, projected once: [k0, N * n_radii]
-    radii = torch.tensor([0.5, 1.0, 2.0], dtype=evecs.dtype) * EPS_KLC
-    n_r = len(radii)
-    disks = torch.exp(-(dist_ext[:, None, :] / radii[None, :, None]).square())  # [N, R, V]
-    A_disk = Mx.mT @ disks.reshape(-1, V).mT  # [k0, N*R]
-    A_disk = A_disk / A_disk.norm(dim=0, keepdim=True)
-    A_desc = Mx.mT @ desc
-    A_desc = A_desc / A_desc.norm(dim=0, keepdim=True) / math.sqrt(desc.shape[1])
-    symmetries = [Symmetry(torch.eye(kf, dtype=evecs.dtype), torch.arange(V), "identity", 1, 1.0)]
-    if cands:
-        src = torch.tensor([[q1, p1, q2, p2] for (p1, q1), (p2, q2) in cands])  # [B, 4] point ids
-        dst = torch.tensor([[p1, q1, p2, q2] for (p1, q1), (p2, q2) in cands])
-        cols = lambda ids: (ids[:, :, None] * n_r + torch.arange(n_r)).reshape(len(ids), -1)
-        Bn = len(cands)
-        A = torch.cat([A_disk[:, cols(src)].permute(1, 0, 2), A_desc.expand(Bn, -1, -1)], dim=-1)
-        B = torch.cat([A_disk[:, cols(dst)].permute(1, 0, 2), A_desc.expand(Bn, -1, -1)], dim=-1)
-        C = block_procrustes(A, B, bands0)  # [B, k0, k0]
-        timer.lap("procrustes")
-        samples = farthest_point_sampling(torch.as_tensor(verts_unit), n_samples)
-        score_src = samples[: min(300, n_samples)]
-        # map the score samples by nearest neighbour (targets: all samples), then compare the
-        # distances to the candidate's anchors: d(g(x), g(a)) must equal d(x, a).
-        Q = E0[score_src] @ C  # [B, S, k0]
-        img = samples[torch.cdist(Q, E0[samples].expand(Bn, -1, -1)).argmin(-1)]  # [B, S]
-        Dx = dist_ext[:, score_src]  # [N, S]
-        before = Dx[src]  # [B, 4, S]  d(x, a) for a = q1, p1, q2, p2 ...
-        after = dist_ext[dst[:, :, None], img[:, None, :]]  # d(g(x), g(a))
-        res = (after - before).abs().mean((-2, -1)) / EPS_KLC
-        order = torch.argsort(res)
-        info["coarse_distortion"] = [round(float(r), 4) for r in res[order[:5]]]
-        info["coarse_best"] = [cands[i] for i in order[:5].tolist()]
-        timer.lap("scoring")
-        best = None
-        for i in order[:3].tolist():
-            Cf = zoomout_symmetry(C[i], evecs, mass, bands, kf, samples=samples, involution=True,
-                                  block=block_refine)
-            img = samples[nearest_neighbors(evecs[score_src, :kf] @ Cf, evecs[samples, :kf])]
-            r = float((dist_ext[dst[i][:, None], img[None]] - Dx[src[i]]).abs().mean() / EPS_KLC)
-            if best is None or r < best[0]:
-                best = (r, Cf)
-        timer.lap("refine")
-        if best is not None:
-            Cf = best[1]
-            p2p = nearest_neighbors(evecs[:, :kf] @ Cf, evecs[:, :kf])
-            timer.lap("p2p")
-            score, distortion = isometry_score(solver, p2p, samples[:64])
-            info["distortion"] = distortion
-            timer.lap("verify")
-            if score >= min_score:
-                symmetries.append(Symmetry(Cf, p2p, "reflection", 2, score))
-    return SymmetryResult(symmetries, spectrum, bands, group={}, timings=timer.timings, info=info)
+                       min_score, n_refine, timer):
+    from .reflect import detect_reflection
+    return detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
+                             n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
+                             block_refine=block_refine, min_score=min_score, timer=timer)
 
 
 def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor) -> tuple[float, float]:

@@ -55,7 +55,7 @@ def _bands_upto(bands: list[range], K: int) -> list[range]:
 
 def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range], k_final: int,
                      *, step: int = 4, samples: Tensor | None = None, involution: bool = False,
-                     block: bool = True, n_iter_end: int = 2) -> Tensor:
+                     block: bool = True, n_iter_end: int = 2, project: bool = True) -> Tensor:
     """Grow a symmetry matrix from ``C0 [k0, k0]`` to ``[k_final, k_final]``, band by band.
 
     Each step: ``p2p = NN(evecs_k[S] @ C, evecs_k)`` for the sample vertices ``S``, then the
@@ -95,6 +95,6 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B
         AtW = (A * w[:, None]).mT
         Cn = torch.linalg.solve(AtW @ A, AtW @ B)
-        C = project_structure(Cn, _bands_upto(bands, k_next) if block else None, involution)
+        C = project_structure(Cn, _bands_upto(bands, k_next) if block else None, involution) if project else Cn
         k = k_next
     return C

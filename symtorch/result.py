@@ -67,7 +67,23 @@ class SymmetryResult:
         return next((s for s in self.symmetries if s.kind == "reflection"), None)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (no matrices): the schema of ``symtorch detect``."""
+        """JSON-ready summary (no matrices): the schema of ``symtorch detect``.
+
+        ``symmetries[i]`` is group element ``i``: the indices of ``group["table"]``,
+        ``group["inverses"]`` and ``group["orders"]`` refer to it, and it carries its ``kind``, ``order``,
+        ``score`` and vertex map ``p2p``. ``group["elements"]`` repeats, per element, its kind, order,
+        inverse and orientation next to the table; ``group["table_paper"]`` is the table in the layout
+        of the paper's Table 3 (``table.T``: entry (i, j) is "g_i, then g_j").
+        """
+        group = dict(self.group) if self.group else {"order": len(self.symmetries), "name": None}
+        if "table" in group:
+            inv, rev = group.get("inverses", []), group.get("reversing", [])
+            group["table_paper"] = [list(col) for col in zip(*group["table"])]
+            group["elements"] = [
+                {"index": i, "kind": s.kind, "order": s.order, "score": round(float(s.score), 6),
+                 **({"inverse": inv[i]} if i < len(inv) else {}),
+                 **({"reversing": bool(rev[i])} if i < len(rev) else {})}
+                for i, s in enumerate(self.symmetries)]
         return {
             "n_vertices": int(self.spectrum.evecs.shape[0]),
             "k": int(self.spectrum.evecs.shape[1]),
@@ -75,6 +91,6 @@ class SymmetryResult:
             "continuous": self.continuous,
             "symmetries": [{"kind": s.kind, "order": s.order, "score": round(float(s.score), 6),
                             "p2p": s.p2p.tolist()} for s in self.symmetries],
-            "group": self.group or {"order": len(self.symmetries), "name": None},
+            "group": group,
             "timings": {k: round(v, 4) for k, v in self.timings.items()},
         }

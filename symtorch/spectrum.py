@@ -12,6 +12,7 @@ import warnings
 from typing import NamedTuple
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 import torch
@@ -57,6 +58,12 @@ def laplacian_matrices(verts, faces=None, *, n_neighbors: int = 30,
         v = check_verts(verts)
         if v.shape[0] < 8:
             raise ValueError(f"point cloud needs at least 8 points, got {v.shape[0]}")
+        # Coincident or collinear points have zero area; robust_laplacian would fail on them with
+        # an opaque geometry-central assertion (RuntimeError), so say what is wrong instead.
+        s = np.linalg.svd(v - v.mean(axis=0), compute_uv=False)
+        if s[0] == 0 or s[1] <= 1e-8 * s[0]:
+            raise ValueError(f"point cloud has zero area: its {v.shape[0]} points are coincident "
+                             f"or collinear")
         W, M = robust_laplacian.point_cloud_laplacian(v, mollify_factor=mollify_factor,
                                                       n_neighbors=min(n_neighbors, v.shape[0] - 1))
     else:
@@ -73,6 +80,12 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     One sparse LU factorisation of ``W - shift * M`` (``shift < 0`` keeps it positive definite, since W
     is only semi-definite); on failure the shift is made ten times larger and the solve retried.
     Runs in float64 on CPU.
+
+    Exactly repeated eigenvalues (a mesh with exact symmetry) defeat single-vector Lanczos: its Krylov
+    space holds one direction per eigenspace, so ARPACK can return 3 of a 5-fold eigenvalue and fill
+    up with larger ones. After the solve, a deflated probe (:func:`_missing_pairs`, reusing the
+    factorisation) looks for eigenpairs below the largest one found that the basis lacks, and adds
+    them until there are none.
 
     Returns:
         (evals [k] ascending, evecs [V, k] mass-orthonormal) numpy float64.
@@ -97,6 +110,18 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
             log.warning("eigensolve failed with shift %.1e (%s); retrying", sigma, err)
     else:
         raise RuntimeError(f"generalized eigensolve failed after {retries + 1} shifts: {last_err}")
+    for _ in range(k):  # each round adds at least one missing pair, or stops
+        try:
+            lam, phi = _missing_pairs(lu, mass, sigma, evecs, float(evals.max()), tol, v0)
+        except (RuntimeError, sla.ArpackError, sla.ArpackNoConvergence) as err:
+            log.warning("check for missed repeated eigenvalues failed (%s); keeping the solve", err)
+            break
+        if lam.size == 0:
+            break
+        log.debug("deflated probe found %d eigenpairs missed by the solve", lam.size)
+        evals, evecs = np.concatenate([evals, lam]), np.concatenate([evecs, phi], axis=1)
+        order = np.argsort(evals)[:k]
+        evals, evecs = evals[order], evecs[:, order]
     order = np.argsort(evals)
     evals, evecs = evals[order], evecs[:, order]
     # Re-normalise against the lumped mass (ARPACK returns M-orthonormal vectors up to tol) and fix a
@@ -105,6 +130,57 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     flip = np.sign(evecs[np.abs(evecs).argmax(axis=0), np.arange(k)])
     evecs *= np.where(flip == 0, 1.0, flip)[None, :]
     return np.maximum(evals, 0.0), evecs
+
+
+def _missing_pairs(lu, mass: np.ndarray, sigma: float, evecs: np.ndarray, lam_max: float,
+                   tol: float, v0: np.ndarray, n_probe: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs with eigenvalue below ``lam_max`` that are M-orthogonal to ``evecs``.
+
+    Works on ``S = M^1/2 (W - sigma M)^-1 M^1/2`` (symmetric, eigenvalues ``1 / (lambda - sigma)``)
+    with the span of ``M^1/2 evecs`` projected out: its largest eigenvalues are the smallest
+    eigenvalues the basis lacks, and Lanczos always finds the dominant one.
+
+    Returns:
+        (evals [n], evecs [V, n]) with ``n <= n_probe``, possibly 0.
+    """
+    V, k = evecs.shape
+    nev = min(n_probe, V - k - 1)
+    if nev < 1:
+        return np.zeros(0), np.zeros((V, 0))
+    sq = np.sqrt(mass)
+    # Orthonormal basis of the found span. The vectors are already orthonormal up to the solver
+    # tolerance, so a Cholesky of the small Gram matrix is enough (and much cheaper than a QR).
+    Y = evecs * sq[:, None]
+    L = np.linalg.cholesky(Y.T @ Y)
+    Y = np.ascontiguousarray(scipy.linalg.solve_triangular(L, Y.T, lower=True).T)
+
+    def proj(y):
+        return y - Y @ (Y.T @ y)
+
+    def matvec(y):
+        # Projecting the output alone keeps the Lanczos vectors in the complement: S maps the found
+        # span into itself up to the solver tolerance, so the input needs no projection.
+        return proj(sq * lu.solve(sq * np.ravel(y)))
+
+    op = sla.LinearOperator((V, V), matvec=matvec, dtype=np.float64)
+    # Cheap detection first: a loose tolerance is enough to see whether anything lies below lam_max
+    # (a top Ritz value is a lower bound on the top eigenvalue of S, so lambda is over-estimated;
+    # the 1e-3 margin covers the loose tolerance). Only then solve to ``tol``.
+    # Only the top eigenvalue matters for detection (nev=1 converges in a few dozen solves).
+    coarse = max(tol, 1e-4)
+    mu, Z = sla.eigsh(op, k=1, which="LA", tol=coarse, v0=proj(v0))
+    with np.errstate(divide="ignore"):
+        lam = sigma + 1.0 / mu
+    below = (mu > 0) & (lam < lam_max + 1e-3 * max(abs(lam_max), 1e-12))
+    if not below.any():
+        return np.zeros(0), np.zeros((V, 0))
+    if coarse > tol or nev > 1:
+        mu, Z = sla.eigsh(op, k=nev, which="LA", tol=tol, v0=proj(Z[:, below].sum(axis=1)))
+        with np.errstate(divide="ignore"):
+            lam = sigma + 1.0 / mu
+    # strictly below the largest eigenvalue found (relative margin well above the solver tolerance)
+    keep = (mu > 0) & (lam < lam_max - 1e-7 * max(abs(lam_max), 1e-12))
+    return lam[keep], Z[:, keep] / sq[:, None]
 
 
 def laplacian_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = True,

@@ -19,7 +19,8 @@ from torch.utils.data import Dataset
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MeshDataset", "PairDataset", "read_sample", "corr_to_fmap", "default_cache_dir"]
+__all__ = ["MeshDataset", "PairDataset", "read_sample", "process_file", "corr_to_fmap",
+           "default_cache_dir"]
 
 MESH_SUFFIXES = (".off", ".obj", ".ply")
 _GROUND_TRUTH = (None, "template", "vts")
@@ -121,6 +122,56 @@ def _version() -> str:
     return __version__
 
 
+def file_stamp(path: Path) -> list[int]:
+    """``[size, mtime_ns]`` of a mesh file: a cached sample is valid while its file's stamp holds."""
+    st = Path(path).stat()
+    return [st.st_size, st.st_mtime_ns]
+
+
+def cache_key(pre_transform: Callable[[dict], dict] | None, dtype: torch.dtype,
+              ground_truth: str | Callable[[Path], dict] | None) -> dict:
+    """What a cached sample depends on besides its mesh file (``meta.json["key"]``)."""
+    gt = ground_truth if isinstance(ground_truth, str) or ground_truth is None \
+        else getattr(ground_truth, "__qualname__", repr(ground_truth))
+    return {"pre_transform": repr(pre_transform), "version": _version(), "dtype": str(dtype),
+            "ground_truth": gt}
+
+
+def read_meta(processed_dir: Path) -> dict | None:
+    """``processed_dir/meta.json`` (``{"key": ..., "files": {name: stamp}}``), None if absent or bad."""
+    try:
+        return json.loads((Path(processed_dir) / "meta.json").read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def write_meta(processed_dir: Path, meta: dict) -> None:
+    """Write ``processed_dir/meta.json`` atomically."""
+    def write(tmp: str) -> None:
+        Path(tmp).write_text(json.dumps(meta, indent=1))
+
+    _atomic_write(Path(processed_dir) / "meta.json", write)
+
+
+def process_file(raw: str | os.PathLike, out: str | os.PathLike,
+                 pre_transform: Callable[[dict], dict] | None = None,
+                 dtype: torch.dtype = torch.float32,
+                 ground_truth: str | Callable[[Path], dict] | None = None) -> dict:
+    """Read one mesh, apply ``pre_transform`` and save the sample to ``out`` (atomically).
+
+    The one code path that fills a cache: :class:`MeshDataset` and ``symtorch precompute`` both call
+    it, so either can read what the other wrote.
+
+    Returns:
+        the saved sample.
+    """
+    sample = read_sample(raw, dtype, ground_truth)
+    if pre_transform is not None:
+        sample = pre_transform(sample)
+    _atomic_write(Path(out), lambda tmp: torch.save(sample, tmp))
+    return sample
+
+
 class MeshDataset(Dataset):
     """A folder of meshes, processed once by ``pre_transform`` into a cache, then transformed per item.
 
@@ -179,26 +230,17 @@ class MeshDataset(Dataset):
     @property
     def cache_key(self) -> dict:
         """What a cached sample depends on besides its mesh file."""
-        gt = self.ground_truth if isinstance(self.ground_truth, str) or self.ground_truth is None \
-            else getattr(self.ground_truth, "__qualname__", repr(self.ground_truth))
-        return {"pre_transform": repr(self.pre_transform), "version": _version(),
-                "dtype": str(self.dtype), "ground_truth": gt}
+        return cache_key(self.pre_transform, self.dtype, self.ground_truth)
 
     @property
     def processed_paths(self) -> list[Path]:
         return [self.processed_dir / f"{n}.pt" for n in self.names]
 
     def _read_meta(self) -> dict | None:
-        try:
-            return json.loads((self.processed_dir / "meta.json").read_text())
-        except (OSError, ValueError):
-            return None
+        return read_meta(self.processed_dir)
 
     def _write_meta(self, meta: dict) -> None:
-        def write(tmp: str) -> None:
-            Path(tmp).write_text(json.dumps(meta, indent=1))
-
-        _atomic_write(self.processed_dir / "meta.json", write)
+        write_meta(self.processed_dir, meta)
 
     def process(self, force: bool = False) -> list[str]:
         """Process what the cache lacks (everything when ``force`` or the key changed).
@@ -219,15 +261,12 @@ class MeshDataset(Dataset):
             meta = {"key": key, "files": {}}
         todo = []
         for name, raw, out in zip(self.names, self.raw_paths, self.processed_paths):
-            st = raw.stat()
-            if meta["files"].get(name) != [st.st_size, st.st_mtime_ns] or not out.exists():
-                todo.append((name, raw, out, [st.st_size, st.st_mtime_ns]))
+            stamp = file_stamp(raw)
+            if meta["files"].get(name) != stamp or not out.exists():
+                todo.append((name, raw, out, stamp))
         for i, (name, raw, out, stamp) in enumerate(todo):
             t0 = time.perf_counter()
-            sample = read_sample(raw, self.dtype, self.ground_truth)
-            if self.pre_transform is not None:
-                sample = self.pre_transform(sample)
-            _atomic_write(out, lambda tmp, s=sample: torch.save(s, tmp))
+            process_file(raw, out, self.pre_transform, self.dtype, self.ground_truth)
             meta["files"][name] = stamp
             self._write_meta(meta)  # after each mesh: an interrupted run resumes where it stopped
             log.info("processed %s (%d/%d) in %.2fs", name, i + 1, len(todo),

@@ -1,0 +1,74 @@
+"""Scoring whole detected groups (issue 4): per-element KLC10 rates, and orbit ground truth.
+
+Protocol, pinned:
+
+- Dense truth (shapes built in code, ``symtorch.shapes.symmetry_maps``): true and detected elements
+  are matched one-to-one by :func:`symtorch.eval.score_group` (Hungarian, mean geodesic error); the
+  rate of a matched element is the share of the sample points whose image lies strictly within
+  ``eps = sqrt(area / (20 pi))`` (geodesic) of the true image.
+- Orbit truth (SHREC'07 Watertight ``.sym.info``, each orbit listed in cyclic order around the
+  axis): a detected element must permute every orbit as a dihedral symmetry of that cycle (a
+  rotation by j steps or a reflection). Per orbit, the dihedral permutation with the least total
+  error is taken; the error of a point is the geodesic distance from its image to its partner under
+  that permutation; fixed points (orbits of size 1) must map to themselves. Unlike
+  :func:`symtorch.eval.orbit_errors`, an element may fix orbit points (a diagonal mirror of a square
+  table fixes two corners).
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .eval import klc_threshold, score_group
+from .geodesics import GeodesicSolver
+
+__all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates"]
+
+
+def dihedral_permutations(n: int) -> np.ndarray:
+    """[2n, n] the permutations of a cycle of n positions: n rotations, then n reflections."""
+    i = np.arange(n)
+    rots = [(i + j) % n for j in range(n)]
+    refl = [(j - i) % n for j in range(n)]
+    return np.asarray(rots + refl if n > 2 else rots)  # for n <= 2 the reflections repeat rotations
+
+
+def dihedral_orbit_errors(solver: GeodesicSolver, p2p, orbits) -> Tensor:
+    """[P] geodesic error of each orbit point under the best dihedral permutation of its orbit.
+
+    Args:
+        solver: heat-method solver of the mesh (errors in its units).
+        p2p: [V] detected element.
+        orbits: list of vertex-id arrays, each in cyclic order (``benchmarks.load_orbits``).
+    """
+    p = np.asarray(torch.as_tensor(p2p).cpu()).astype(np.int64)
+    out = []
+    for o in orbits:
+        o = np.asarray(o, dtype=np.int64).reshape(-1)
+        D = solver.distances_from(o).to("cpu", torch.float64).numpy()[:, p[o]]  # [target, point]
+        perms = dihedral_permutations(len(o)) if len(o) > 1 else np.zeros((1, 1), dtype=np.int64)
+        err = D[perms, np.arange(len(o))[None]]  # [n_perm, n]: d(g(o_i), o_perm(i))
+        out.append(err[err.sum(1).argmin()])
+    return torch.as_tensor(np.concatenate(out) if out else np.zeros(0))
+
+
+def element_rates(solver: GeodesicSolver, true_maps, detected_maps, n_points: int = 100):
+    """Match detected elements to true ones and give each matched pair's KLC10 rate.
+
+    Returns:
+        (GroupScore, rates [T] float: share of the points within eps of the true image, 0 where the
+        true element was missed).
+    """
+    sc = score_group(true_maps, detected_maps, solver, n_points=n_points)
+    V = solver.n_verts
+    pts = np.unique(np.linspace(0, V - 1, min(n_points, V)).round().astype(np.int64))
+    eps = klc_threshold(solver.area)
+    T = np.asarray(true_maps)
+    Dm = np.stack([np.asarray(torch.as_tensor(m).cpu()) for m in detected_maps])
+    rates = np.zeros(len(T))
+    for t, d, _ in sc.matches:
+        D = solver.distances_from(T[t][pts]).to("cpu", torch.float64).numpy()  # [N, V]
+        err = D[np.arange(len(pts)), Dm[d][pts]]
+        rates[t] = float((err < eps).mean())
+    return sc, rates

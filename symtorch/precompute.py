@@ -1,0 +1,645 @@
+"""``symtorch precompute``: a folder tree of meshes -> :class:`~symtorch.data.MeshDataset` caches.
+
+Each mesh ``SRC/a/b/x.off`` becomes ``OUT/a/b/x.pt`` and an entry of ``OUT/a/b/meta.json``, written by
+:func:`symtorch.data.dataset.process_file`, the function ``MeshDataset`` itself processes with. So
+``MeshDataset(SRC/a/b, pre_transform, processed_dir=OUT/a/b)`` loads them without processing again,
+provided ``pre_transform`` is the same (its repr is the cache key); :func:`open_dataset` rebuilds it
+from ``OUT/precompute.json``::
+
+    symtorch precompute data/FAUST cache/FAUST --k 64 --workers 4
+    ds = open_dataset("data/FAUST", "cache/FAUST")            # MeshDataset over the meshes done
+
+Properties:
+
+- **resumable**: every file is written to a temporary file and moved into place (``os.replace``), and
+  ``meta.json`` records a mesh only after its ``.pt`` exists (rewritten after every mesh, or, for
+  folders so large that one rewrite takes over 0.2 s, a little less often). Killed at
+  any moment (even ``kill -9``), a new run redoes only the meshes not yet recorded.
+- **bad meshes** are skipped: one JSON line ``{"file", "error", "reason"}`` per mesh in
+  ``OUT/failures.jsonl``; the file lists exactly the meshes still failing after the latest run.
+- **deterministic**: torch uses one thread per process and the detector a seeded generator, so a
+  resumed, parallel or distributed run writes the same samples as one uninterrupted run.
+- **workers**: ``--workers N`` processes (spawn start method), one mesh per task. A worker that dies
+  (out of memory, a crash in native code) fails only its mesh.
+- **several machines**: under ``torchrun`` (``RANK``, ``WORLD_SIZE`` in the environment) rank r takes
+  the meshes ``r, r + W, r + 2W, ...`` of the sorted list and writes into the shared ``OUT``
+  (``meta.json`` updates take an ``fcntl`` lock on ``OUT/.lock``). At the end the ranks join a gloo
+  process group, only to wait for one another and to print one summary.
+
+Layout of ``OUT``: the ``.pt`` files and ``meta.json`` per folder, ``precompute.json`` (the
+settings), ``failures.jsonl`` and ``.lock``.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime
+import json
+import logging
+import os
+import resource
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+
+from .data.dataset import (MESH_SUFFIXES, MeshDataset, _atomic_write, _natural_key, cache_key,
+                           file_stamp, process_file, read_meta, write_meta)
+from .data.transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
+                              NormalizeArea)
+
+log = logging.getLogger(__name__)
+
+__all__ = ["default_pre_transform", "find_meshes", "precompute", "open_dataset", "done_names",
+           "Summary", "register_cli"]
+
+FAILURES = "failures.jsonl"
+SETTINGS = "precompute.json"
+LOCK = ".lock"
+_DTYPES = {"float32": torch.float32, "float64": torch.float64}
+_FLUSH_SHARE = 0.05  # at most this share of the time goes to rewriting meta.json
+
+
+def default_pre_transform(k: int = 64, detect: bool = True, seed: int = 0) -> Compose:
+    """``Compose([NormalizeArea(), ComputeSpectrum(k), ComputeDescriptors(), DetectSymmetries(seed)])``.
+
+    Args:
+        k: eigenpairs per mesh.
+        detect: add :class:`~symtorch.data.DetectSymmetries` (``sym_p2p``, ``sym_fmap``, ``sym_score``).
+        seed: of the detector's generator.
+    """
+    transforms = [NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors()]
+    if detect:
+        transforms.append(DetectSymmetries(seed=seed))
+    return Compose(transforms)
+
+
+def find_meshes(src: str | os.PathLike, exclude: str | os.PathLike | None = None) -> list[Path]:
+    """Mesh files under ``src`` (suffixes ``MESH_SUFFIXES``), in natural order of their relative path.
+
+    Hidden files and folders (name starting with '.') and the folder ``exclude`` are skipped; symbolic
+    links to folders are not followed.
+    """
+    src = Path(src)
+    exclude = Path(exclude).resolve() if exclude is not None else None
+    found = []
+    for folder, dirs, files in os.walk(src):
+        dirs[:] = [d for d in dirs if not d.startswith(".")
+                   and (exclude is None or (Path(folder) / d).resolve() != exclude)]
+        found += [Path(folder) / f for f in files
+                  if not f.startswith(".") and Path(f).suffix.lower() in MESH_SUFFIXES]
+    return sorted(found, key=lambda p: _natural_key(p.relative_to(src).as_posix()))
+
+
+@dataclass
+class Summary:
+    """What one run (one rank) did; counts are meshes."""
+
+    total: int = 0           # meshes this rank was given
+    done: int = 0            # processed now
+    skipped: int = 0         # already in the cache
+    failed: int = 0          # listed in failures.jsonl
+    seconds: float = 0.0
+    peak_rss_mb: float = 0.0  # largest resident set of one process that processed meshes
+    rank: int = 0
+    world_size: int = 1
+    failures: list = field(default_factory=list)  # [(file, reason)]
+    ranks: list = field(default_factory=list)     # rank 0 under torchrun: every rank's summary
+
+    def line(self) -> str:
+        rate = 60.0 * self.done / self.seconds if self.seconds > 0 else 0.0
+        return (f"{self.done} done, {self.skipped} already done, {self.failed} failed, of "
+                f"{self.total} in {_hms(self.seconds)} ({rate:.1f} meshes/min, peak "
+                f"{self.peak_rss_mb:.0f} MB per process)")
+
+
+@dataclass
+class _Item:
+    raw: Path
+    rel: str      # posix path of the mesh relative to SRC (its id in failures.jsonl)
+    folder: str   # posix path of its folder relative to SRC ("." at the top)
+    name: str     # file stem: the sample name in MeshDataset
+    out: Path
+
+
+# ------------------------------------------------------------------------------------- worker side
+_WORKER: dict = {}
+
+
+def _init_worker(pre_transform, dtype, ground_truth, log_level, parent_pid) -> None:
+    torch.set_num_threads(1)
+    _WORKER.update(pre_transform=pre_transform, dtype=dtype, ground_truth=ground_truth)
+    logging.basicConfig(level=log_level, stream=sys.stderr,
+                        format="symtorch: %(levelname)s: %(message)s")
+    if parent_pid is not None:  # an orphaned worker (parent killed with -9) exits instead of waiting
+        def watch():
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(1)
+
+        threading.Thread(target=watch, daemon=True).start()
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+def _run_item(raw: str, out: str) -> dict:
+    """Process one mesh in this process; never raises (the outcome is in the returned dict)."""
+    t0 = time.perf_counter()
+    res = {"raw": raw}
+    # the reader logs each mesh warning; here they are collected and logged once by the parent (-v)
+    io_log = logging.getLogger("symtorch.io")
+    level = io_log.level
+    if not io_log.isEnabledFor(logging.DEBUG):
+        io_log.setLevel(logging.ERROR)
+    try:
+        res["stamp"] = file_stamp(Path(raw))  # before reading: a file changed meanwhile is redone
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            process_file(raw, out, _WORKER["pre_transform"], _WORKER["dtype"], _WORKER["ground_truth"])
+        res.update(ok=True, warnings=sorted({_one_line(w.message) for w in caught}))
+    except Exception as e:  # noqa: BLE001 -- any failure of one mesh is reported, not raised
+        log.debug("%s failed", raw, exc_info=True)
+        msg = _one_line(e)
+        if not msg.startswith(raw):  # not the reader's message: say what is odd about the mesh
+            msg = f"{raw}: {type(e).__name__}: {msg}{_mesh_problems(raw)}"
+        res.update(ok=False, error=type(e).__name__, reason=msg)
+    finally:
+        io_log.setLevel(level)
+    res["seconds"] = time.perf_counter() - t0
+    res["rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
+    return res
+
+
+def _mesh_problems(raw: str) -> str:
+    """`` (mesh: 2 connected components; ...)`` for a mesh that broke processing, or ``""``."""
+    from .io import _problems, mesh_report, read_mesh
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mesh = read_mesh(raw)
+        problems = ["a point cloud"] if mesh.faces is None else []
+        problems += _problems(mesh_report(mesh.verts, mesh.faces))
+        if len(mesh.verts) < 100:
+            problems.append(f"only {len(mesh.verts)} vertices")
+    except Exception:  # noqa: BLE001 -- only a hint
+        return ""
+    return f" (mesh: {'; '.join(problems)})" if problems else ""
+
+
+# ------------------------------------------------------------------------------------- main side
+@contextlib.contextmanager
+def _locked(path: Path):
+    """An exclusive ``fcntl`` lock on ``path`` (several processes or machines share ``OUT``)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: one process at a time is the user's business
+        yield
+        return
+    with open(path, "a+") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+class _Progress:
+    """``[####    ] 12/76 16% 3.1 meshes/min ETA 0:20:13 name`` on stderr: redrawn on a terminal,
+    a line every 5 % or 30 s otherwise (logs, torchrun)."""
+
+    def __init__(self, total: int, prefix: str = "", stream=None, enabled: bool = True):
+        self.total, self.prefix, self.n = total, prefix, 0
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = enabled and total > 0
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.t0 = self.last = time.perf_counter()
+        self.next_n = 0
+
+    def clear(self) -> None:
+        """Blank the bar's line on a terminal, so that a log line can be printed."""
+        if self.enabled and self.tty and self.n:
+            self.stream.write("\r" + " " * 150 + "\r")
+            self.stream.flush()
+
+    def update(self, label: str = "") -> None:
+        self.n += 1
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if not self.tty and self.n < self.total and self.n < self.next_n and now - self.last < 30:
+            return
+        self.last, self.next_n = now, self.n + max(1, self.total // 20)
+        elapsed = now - self.t0
+        rate = self.n / elapsed if elapsed > 0 else 0.0
+        eta = (self.total - self.n) / rate if rate > 0 else 0.0
+        width = 24
+        bar = "#" * int(width * self.n / self.total)
+        msg = (f"{self.prefix}[{bar:<{width}}] {self.n}/{self.total} {100 * self.n / self.total:3.0f}% "
+               f"{60 * rate:.1f} meshes/min ETA {_hms(eta)} {label[-40:]}")
+        if self.tty:
+            end = "\n" if self.n == self.total else ""
+            self.stream.write("\r" + msg[:150].ljust(150) + end)
+        else:
+            self.stream.write(msg + "\n")
+        self.stream.flush()
+
+
+def _hms(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+
+def _dist_env() -> tuple[int, int]:
+    """(rank, world size) from the ``torchrun`` environment; (0, 1) outside it."""
+    try:
+        rank, world = int(os.environ.get("RANK", 0)), int(os.environ.get("WORLD_SIZE", 1))
+    except ValueError:
+        raise ValueError(f"RANK={os.environ.get('RANK')!r} and WORLD_SIZE="
+                         f"{os.environ.get('WORLD_SIZE')!r} must be integers") from None
+    if world < 1 or not 0 <= rank < world:
+        raise ValueError(f"need 0 <= RANK < WORLD_SIZE, got RANK={rank} WORLD_SIZE={world}")
+    return rank, world
+
+
+class _Recorder:
+    """Collects outcomes and writes them to ``meta.json`` / ``failures.jsonl`` under the lock."""
+
+    def __init__(self, out: Path, key: dict, rank: int):
+        self.out, self.key, self.rank = out, key, rank
+        self.pending: dict[str, dict[str, list]] = {}
+        self.last_flush, self.flush_cost = time.perf_counter(), 0.0
+
+    def success(self, item: _Item, stamp: list) -> None:
+        self.pending.setdefault(item.folder, {})[item.name] = stamp
+        # after every mesh while meta.json is cheap to rewrite (< 0.2 s); for huge folders, often
+        # enough that the rewrites take at most _FLUSH_SHARE of the time (a kill loses that little)
+        waited = time.perf_counter() - self.last_flush
+        if self.flush_cost < 0.2 or waited >= self.flush_cost / _FLUSH_SHARE:
+            self.flush()
+
+    def failure(self, item: _Item, error: str, reason: str) -> None:
+        line = json.dumps({"file": item.rel, "error": error, "reason": reason, "rank": self.rank,
+                           "time": datetime.datetime.now().isoformat(timespec="seconds")})
+        with _locked(self.out / LOCK), open(self.out / FAILURES, "a") as fh:
+            fh.write(line + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    def flush(self) -> None:
+        t0 = time.perf_counter()
+        if self.pending:
+            with _locked(self.out / LOCK):
+                for folder, stamps in self.pending.items():
+                    d = self.out / folder
+                    meta = read_meta(d)
+                    if meta is None or meta.get("key") != self.key:
+                        meta = {"key": self.key, "files": {}}  # as MeshDataset does on a new key
+                    meta["files"].update(stamps)
+                    write_meta(d, meta)
+            self.pending.clear()
+        self.last_flush = time.perf_counter()
+        self.flush_cost = self.last_flush - t0
+
+
+def _is_done(item: _Item, meta: dict | None, key: dict) -> bool:
+    # the test of MeshDataset.process: same key, same file stamp, cache file present
+    try:
+        return (meta is not None and meta.get("key") == key and item.out.exists()
+                and meta.get("files", {}).get(item.name) == file_stamp(item.raw))
+    except OSError:  # the mesh vanished: processing it will say so
+        return False
+
+
+def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, detect: bool = True,
+               workers: int = 1, dtype: torch.dtype = torch.float32, ground_truth: str | None = None,
+               seed: int = 0, pre_transform: Callable[[dict], dict] | None = None,
+               progress: bool = True, dist_timeout_min: float = 120.0) -> Summary:
+    """Process every mesh under ``src`` into ``MeshDataset`` caches under ``out`` (see module doc).
+
+    Args:
+        src: folder tree of meshes (``.off``, ``.obj``, ``.ply``, ``.stl``).
+        out: cache folder (created); ``out/<folder>`` is the ``processed_dir`` of ``src/<folder>``.
+        k, detect, seed: build ``default_pre_transform(k, detect, seed)`` unless ``pre_transform``
+            is given.
+        workers: worker processes; 0 or 1 process in this process.
+        dtype: of the cached ``verts`` (spectral keys follow it).
+        ground_truth: ``None``, ``"template"`` or ``"vts"``, as for ``MeshDataset``.
+        pre_transform: a deterministic transform to cache instead of the default.
+        progress: draw a progress bar on stderr.
+        dist_timeout_min: under torchrun, how long a rank waits for the others at the end.
+
+    Returns:
+        Summary of this rank (under torchrun, rank 0's ``failures`` lists every rank's).
+
+    Raises:
+        FileNotFoundError: ``src`` is not a folder or holds no mesh.
+        ValueError: bad arguments.
+    """
+    src, out = Path(src), Path(out)
+    if not src.is_dir():
+        raise FileNotFoundError(f"{src}: no such folder")
+    if workers < 0:
+        raise ValueError(f"workers must be >= 0, got {workers}")
+    if ground_truth not in (None, "template", "vts"):
+        raise ValueError(f"ground_truth must be None, 'template' or 'vts', got {ground_truth!r}")
+    if pre_transform is None:
+        pre_transform = default_pre_transform(k, detect, seed)
+    rank, world = _dist_env()
+    t0 = time.perf_counter()
+    files = find_meshes(src, exclude=out)
+    if not files:
+        raise FileNotFoundError(f"{src}: no {'/'.join(MESH_SUFFIXES)} files in this folder tree")
+    out.mkdir(parents=True, exist_ok=True)
+    key = cache_key(pre_transform, dtype, ground_truth)
+    if rank == 0:
+        settings = {"src": str(src.resolve()), "k": k, "detect": detect, "seed": seed,
+                    "dtype": str(dtype).removeprefix("torch."), "ground_truth": ground_truth,
+                    "default_pre_transform": repr(pre_transform) == repr(
+                        default_pre_transform(k, detect, seed)), "key": key}
+        _atomic_write(out / SETTINGS, lambda tmp: Path(tmp).write_text(json.dumps(settings, indent=1)))
+    if world == 1:
+        _remove_temporaries(out)
+
+    items, taken, collisions = [], {}, []
+    for raw in files:
+        rel = raw.relative_to(src)
+        folder = rel.parent.as_posix()
+        item = _Item(raw, rel.as_posix(), folder, raw.stem, out / folder / f"{raw.stem}.pt")
+        first = taken.setdefault((folder, raw.stem), item)
+        if first is not item:  # MeshDataset names samples by file stem: one file per stem
+            collisions.append((item, first))
+        items.append(item)
+    mine = items[rank::world]
+    collided = {id(c): f for c, f in collisions}
+    summary = Summary(total=len(mine), rank=rank, world_size=world)
+    rec = _Recorder(out, key, rank)
+    todo, metas, reported = [], {}, set()
+    for item in mine:
+        (out / item.folder).mkdir(parents=True, exist_ok=True)
+        if item.folder not in metas:
+            metas[item.folder] = read_meta(out / item.folder)
+            meta = metas[item.folder]
+            if meta is not None and meta.get("key") != key and item.folder not in reported:
+                reported.add(item.folder)
+                log.warning("cache %s was made with other settings; processing it again",
+                            out / item.folder)
+        first = collided.get(id(item))
+        if first is not None:
+            reason = (f"{item.raw}: same name {item.name!r} as {first.raw.name} (MeshDataset names "
+                      "samples by file stem); skipped")
+            rec.failure(item, "NameCollision", reason)
+            summary.failed += 1
+            summary.failures.append((item.rel, reason))
+        elif _is_done(item, metas[item.folder], key):
+            summary.skipped += 1
+        else:
+            todo.append(item)
+
+    prefix = f"rank {rank}/{world}: " if world > 1 else ""
+    bar = _Progress(len(todo), prefix=prefix, enabled=progress)
+    if progress:
+        print(f"symtorch: {prefix}{len(mine)} meshes, {summary.skipped} already done, "
+              f"{len(todo)} to do, {max(workers, 1)} process(es)", file=sys.stderr, flush=True)
+
+    def record(item: _Item, res: dict) -> None:
+        summary.peak_rss_mb = max(summary.peak_rss_mb, res.get("rss_mb", 0.0))
+        if res["ok"]:
+            summary.done += 1
+            rec.success(item, res["stamp"])
+            for w in res.get("warnings", []):
+                log.info("%s", w)
+        else:
+            summary.failed += 1
+            reason = res["reason"]  # starts with the path of the mesh
+            summary.failures.append((item.rel, reason))
+            rec.failure(item, res["error"], reason)
+            bar.clear()
+            log.warning("%s", reason)
+        bar.update(item.rel)
+
+    try:
+        if workers <= 1 or len(todo) <= 1:
+            _run_here(todo, pre_transform, dtype, ground_truth, record)
+        else:
+            _run_pool(todo, min(workers, len(todo)), pre_transform, dtype, ground_truth, record)
+    finally:
+        rec.flush()
+    summary.seconds = time.perf_counter() - t0
+    if world > 1:
+        _finish_distributed(summary, out, items, key, dist_timeout_min)
+    else:
+        _compact_failures(out, items, key)
+    return summary
+
+
+def _run_here(todo, pre_transform, dtype, ground_truth, record) -> None:
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as in the workers: same floating-point sums, same cache files
+    _WORKER.update(pre_transform=pre_transform, dtype=dtype, ground_truth=ground_truth)
+    try:
+        for item in todo:
+            record(item, _run_item(str(item.raw), str(item.out)))
+    finally:
+        torch.set_num_threads(threads)
+        _WORKER.clear()
+
+
+@contextlib.contextmanager
+def _single_threaded_env():
+    """Spawned workers inherit the environment: one BLAS / OpenMP thread each."""
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    old = {n: os.environ.get(n) for n in names}
+    os.environ.update({n: "1" for n in names})
+    try:
+        yield
+    finally:
+        for n, v in old.items():
+            if v is None:
+                os.environ.pop(n, None)
+            else:
+                os.environ[n] = v
+
+
+def _run_pool(todo, workers, pre_transform, dtype, ground_truth, record) -> None:
+    """Run ``todo`` on ``workers`` spawned processes, at most one mesh in flight per worker. When a
+    worker dies, the meshes in flight are retried one at a time; the one that kills again fails."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    init = (pre_transform, dtype, ground_truth, logging.getLogger().level, os.getpid())
+    queue, suspects = list(reversed(todo)), []
+    with _single_threaded_env():
+        while queue:
+            with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
+                                     initargs=init) as pool:
+                running = {}
+                try:
+                    while queue or running:
+                        while queue and len(running) < workers:
+                            item = queue.pop()
+                            running[pool.submit(_run_item, str(item.raw), str(item.out))] = item
+                        finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                        for fut in finished:
+                            record(running.pop(fut), fut.result())
+                except BrokenProcessPool:
+                    suspects = list(running.values())
+                except BaseException:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
+            for item in suspects:  # alone in a fresh pool each, so a second death names the culprit
+                with ProcessPoolExecutor(1, mp_context=ctx, initializer=_init_worker,
+                                         initargs=init) as alone:
+                    try:
+                        res = alone.submit(_run_item, str(item.raw), str(item.out)).result()
+                    except BrokenProcessPool:
+                        res = {"ok": False, "error": "WorkerDied",
+                               "reason": f"{item.raw}: the worker process died (out of memory or "
+                                         "a crash in native code)"}
+                record(item, res)
+            suspects = []
+
+
+def _compact_failures(out: Path, items: list[_Item], key: dict) -> None:
+    """Keep in ``failures.jsonl`` the latest line of each mesh of SRC that is still not done."""
+    path = out / FAILURES
+    with _locked(out / LOCK):
+        if not path.exists():
+            return
+        latest = {}
+        for line in path.read_text().splitlines():
+            with contextlib.suppress(ValueError, KeyError, TypeError):
+                latest[json.loads(line)["file"]] = line
+        by_rel = {it.rel: it for it in items}
+        metas = {f: read_meta(out / f) for f in {it.folder for it in items}}
+        # a mesh no longer in SRC, or done by now, is not failing any more
+        keep = [line for rel, line in latest.items()
+                if rel in by_rel and not _is_done(by_rel[rel], metas[by_rel[rel].folder], key)]
+        if keep:
+            _atomic_write(path, lambda tmp: Path(tmp).write_text("".join(s + "\n" for s in keep)))
+        else:
+            path.unlink()
+
+
+def _remove_temporaries(out: Path) -> None:
+    """Temporary files left by a killed run (``.<name>.<random>.tmp``); only safe with no other writer."""
+    for tmp in out.rglob(".*.tmp"):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _finish_distributed(summary: Summary, out: Path, items, key, timeout_min: float) -> None:
+    """Wait for every rank (gloo), gather the summaries on rank 0, tidy ``out`` there."""
+    import torch.distributed as dist
+
+    if "MASTER_ADDR" not in os.environ or not dist.is_available():
+        log.warning("WORLD_SIZE > 1 without torchrun's MASTER_ADDR: no final barrier; rank %d "
+                    "reports only itself", summary.rank)
+        return
+    own = dist.is_initialized()
+    try:
+        if not own:
+            dist.init_process_group("gloo", timeout=datetime.timedelta(minutes=timeout_min))
+        gathered = [None] * dist.get_world_size()
+        dist.all_gather_object(gathered, asdict(summary))
+        if summary.rank == 0:
+            _compact_failures(out, items, key)
+            _remove_temporaries(out)  # every rank has finished writing
+            summary.failures = [tuple(f) for s in gathered for f in s["failures"]]
+            summary.ranks = gathered
+        dist.barrier()
+    except Exception as e:  # noqa: BLE001 -- the work is done; only the joint summary is lost
+        log.warning("rank %d: no joint summary (%s: %s)", summary.rank, type(e).__name__, _one_line(e))
+    finally:
+        if not own and dist.is_initialized():
+            dist.destroy_process_group()
+
+
+# ------------------------------------------------------------------------------------- reading back
+def done_names(processed_dir: str | os.PathLike) -> list[str]:
+    """Names recorded in ``processed_dir/meta.json`` whose ``.pt`` exists, in natural order."""
+    d = Path(processed_dir)
+    meta = read_meta(d) or {}
+    return sorted((n for n in meta.get("files", {}) if (d / f"{n}.pt").exists()), key=_natural_key)
+
+
+def open_dataset(src: str | os.PathLike, out: str | os.PathLike, folder: str = ".",
+                 transform: Callable[[dict], dict] | None = None) -> MeshDataset:
+    """``MeshDataset`` over the meshes of ``src/folder`` that ``symtorch precompute src out`` did.
+
+    Rebuilds the pre-transform from ``out/precompute.json`` (so the cache key matches and nothing is
+    processed again) and passes ``names=done_names(out/folder)``: failed meshes are left out.
+
+    Raises:
+        ValueError: ``out`` was made with a custom ``pre_transform`` (build ``MeshDataset`` yourself).
+    """
+    try:
+        s = json.loads((Path(out) / SETTINGS).read_text())
+    except (OSError, ValueError):
+        raise FileNotFoundError(f"{Path(out) / SETTINGS}: not a symtorch precompute folder") from None
+    if not s.get("default_pre_transform", False):
+        raise ValueError(f"{out} was made with a custom pre_transform; build MeshDataset with it")
+    names = done_names(Path(out) / folder)
+    if not names:
+        raise FileNotFoundError(f"{Path(out) / folder}: no precomputed meshes")
+    return MeshDataset(Path(src) / folder, default_pre_transform(s["k"], s["detect"], s["seed"]),
+                       transform, processed_dir=Path(out) / folder, names=names,
+                       ground_truth=s["ground_truth"], dtype=_DTYPES[s["dtype"]])
+
+
+# ------------------------------------------------------------------------------------- command line
+def _cmd_precompute(args) -> int:
+    if args.k < 2:
+        raise ValueError(f"--k must be >= 2, got {args.k}")
+    gt = None if args.ground_truth == "none" else args.ground_truth
+    s = precompute(args.src, args.out, k=args.k, detect=args.detect, workers=args.workers,
+                   dtype=_DTYPES[args.dtype], ground_truth=gt, seed=args.seed,
+                   progress=not args.quiet, dist_timeout_min=args.dist_timeout)
+    who = f"rank {s.rank}/{s.world_size}: " if s.world_size > 1 else ""
+    print(f"symtorch: precompute: {who}{s.line()}", file=sys.stderr, flush=True)
+    ranks = s.ranks
+    if ranks:  # rank 0 under torchrun: the total
+        tot = {key: sum(r[key] for r in ranks) for key in ("total", "done", "skipped", "failed")}
+        secs = max(r["seconds"] for r in ranks)
+        print(f"symtorch: precompute: all {len(ranks)} ranks: {tot['done']} done, {tot['skipped']} "
+              f"already done, {tot['failed']} failed, of {tot['total']} in {_hms(secs)}",
+              file=sys.stderr, flush=True)
+    failed = sum(r["failed"] for r in ranks) if ranks else s.failed
+    if failed:
+        print(f"symtorch: precompute: failures listed in {Path(args.out) / FAILURES}",
+              file=sys.stderr, flush=True)
+    return 1 if args.strict and (s.failed or failed) else 0
+
+
+def register_cli(subparsers) -> None:
+    """Add ``symtorch precompute SRC OUT`` to the ``symtorch`` command line."""
+    p = subparsers.add_parser(
+        "precompute", help="process a folder tree of meshes into MeshDataset caches",
+        description="Process every mesh under SRC into OUT (one .pt per mesh, read by MeshDataset). "
+                    "Resumable; bad meshes go to OUT/failures.jsonl; under torchrun each rank takes "
+                    "its share.")
+    p.add_argument("src", help="folder tree of meshes (.off, .obj, .ply, .stl)")
+    p.add_argument("out", help="cache folder; OUT/<folder> is MeshDataset's processed_dir")
+    p.add_argument("--k", type=int, default=64, help="eigenpairs per mesh (default 64)")
+    p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this one)")
+    p.add_argument("--detect", action=argparse.BooleanOptionalAction, default=True,
+                   help="also detect the symmetries (default yes)")
+    p.add_argument("--dtype", choices=sorted(_DTYPES), default="float32")
+    p.add_argument("--ground-truth", choices=["none", "template", "vts"], default="none",
+                   help="ground-truth correspondences to store (see MeshDataset)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the detector")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with status 1 when some meshes failed (default 0: they are listed)")
+    p.add_argument("--dist-timeout", type=float, default=120.0, metavar="MIN",
+                   help="under torchrun, minutes a rank waits for the others at the end")
+    p.set_defaults(func=_cmd_precompute)

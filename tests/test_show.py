@@ -1,0 +1,68 @@
+"""symtorch show: f∘g colourings, the group table panel, PNG and GLB output."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from symtorch import cli, shapes
+from symtorch.show import (colour_function, element_labels, export_glb, render_figure, save_png,
+                           source_vertex, transfer)
+from shapes import mirror_mesh
+
+
+def test_transfer_is_composition_and_source_is_not_symmetric():
+    verts, faces, mirror = (x.numpy() for x in mirror_mesh())
+    p2ps = np.stack([np.arange(len(verts)), mirror])
+    s = source_vertex(verts, p2ps)
+    f = colour_function(verts, faces, s)
+    assert f.min() == 0.0 and f.max() == pytest.approx(1.0) and f[s] == 0.0
+    np.testing.assert_array_equal(transfer(f, p2ps[0]), f)
+    g = transfer(f, mirror)
+    assert np.abs(g - f).max() > 0.5, "f is (nearly) mirror-symmetric: the picture would show nothing"
+    np.testing.assert_array_equal(transfer(g, mirror), f)  # (f∘g)∘g = f for an involution
+    assert g[mirror[s]] == 0.0  # the source's image carries the source's value
+
+
+def test_element_labels():
+    assert element_labels(["identity", "reflection", "rotation", "rotation", "rotoreflection"],
+                          [1, 2, 4, 2, 4]) == ["e", "s1", "r1", "r2", "m1"]
+
+
+def test_render_and_glb(tmp_path):
+    verts, faces = shapes.mirror_blob(2)
+    mirror = shapes.symmetry_maps(verts, shapes.true_symmetries("mirror_blob"))[1]
+    p2ps = np.stack([np.arange(len(verts)), mirror])
+    fig = render_figure(verts, faces, p2ps, ["identity", "reflection"], [1, 2], [1.0, 0.9],
+                        np.array([[0, 1], [1, 0]]), title="blob", max_faces=200)  # coarsened
+    assert len(fig.axes) == 3
+    save_png(fig, tmp_path / "fig.png")
+    data = (tmp_path / "fig.png").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) < 300_000
+    export_glb(str(tmp_path / "c.glb"), verts, faces, p2ps, ["e", "s1"])
+    import trimesh
+
+    scene = trimesh.load(tmp_path / "c.glb")
+    assert sorted(scene.geometry) == ["f_e", "f_s1"]
+    assert all(g.visual.kind == "vertex" and len(g.vertices) == len(verts)
+               for g in scene.geometry.values())
+
+
+def test_cli_show(tmp_path, capsys):
+    from symtorch.io import write_mesh
+
+    write_mesh(tmp_path / "blob.off", *shapes.mirror_blob(2))  # 162 vertices: a quick detection
+    png, glb = tmp_path / "blob.png", tmp_path / "blob.glb"
+    rc = cli.main(["show", str(tmp_path / "blob.off"), "--out", str(png), "--glb", str(glb)])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert png.stat().st_size < 300_000 and glb.stat().st_size > 0
+    assert "figure ->" in err and "group" in err
+
+
+def test_cli_show_point_cloud_is_one_line(tmp_path, capsys):
+    from symtorch.io import write_mesh
+
+    write_mesh(tmp_path / "pc.off", shapes.icosphere(1)[0])
+    rc = cli.main(["show", str(tmp_path / "pc.off"), "--out", str(tmp_path / "x.png")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "is a point cloud" in err and "Traceback" not in err
