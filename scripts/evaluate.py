@@ -50,12 +50,15 @@ def pick_symmetry(result):
     return None
 
 
+MODE = "auto"
+
+
 def run_symtorch(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
     import symtorch
 
     if not hasattr(symtorch, "detect_symmetries"):
         raise SystemExit("symtorch.detect_symmetries is not available yet; try --method pyfm")
-    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces))
+    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=MODE)
     sym = pick_symmetry(result)
     if sym is None:
         return np.arange(len(verts)), "none"
@@ -99,12 +102,16 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Evaluate reflection detection on a benchmark.")
     parser.add_argument("--dataset", required=True, choices=list(DATASETS))
     parser.add_argument("--method", default="symtorch", choices=["symtorch", "pyfm"])
+    parser.add_argument("--mode", default="auto", choices=["auto", "reflection", "group"],
+                        help="detect_symmetries mode (symtorch method)")
     parser.add_argument("--limit", type=int, default=None, help="first N meshes only")
     parser.add_argument("--names", nargs="*", default=None, help="only these meshes")
     parser.add_argument("--max-pairs", type=int, default=1000,
                         help="dense ground truth: score this many evenly spaced pairs (0: all)")
     parser.add_argument("--out", type=Path, default=None, help="write per-mesh rows as CSV")
     args = parser.parse_args(argv)
+    global MODE
+    MODE = args.mode
     logging.basicConfig(level=logging.WARNING)
     warnings.filterwarnings("ignore", category=DeprecationWarning)
 

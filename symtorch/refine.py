@@ -55,7 +55,8 @@ def _bands_upto(bands: list[range], K: int) -> list[range]:
 
 def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range], k_final: int,
                      *, step: int = 4, samples: Tensor | None = None, involution: bool = False,
-                     block: bool = True, n_iter_end: int = 2, project: bool = True) -> Tensor:
+                     block: bool = True, n_iter_end: int = 2, project: bool = True,
+                     targets: Tensor | None = None) -> Tensor:
     """Grow a symmetry matrix from ``C0 [k0, k0]`` to ``[k_final, k_final]``, band by band.
 
     Each step: ``p2p = NN(evecs_k[S] @ C, evecs_k)`` for the sample vertices ``S``, then the
@@ -72,6 +73,9 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         samples: [S] vertex ids to evaluate the map on (default all vertices).
         involution: enforce ``C = C.T`` (reflections).
         block: enforce the band structure (else the full orthogonal matrix, as ZoomOut).
+        project: project onto the structure after each step (else plain least squares).
+        targets: [T] vertex ids the sample images are searched among (default all vertices);
+            a sample set makes each step's nearest-neighbour search V/T times cheaper.
 
     Returns:
         [k_final, k_final] matrix.
@@ -89,7 +93,10 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
     schedule += [k_final] * n_iter_end
     k = C0.shape[-1]
     for k_next in schedule:
-        p2p = nearest_neighbors(evecs[S, :k] @ C, evecs[:, :k])
+        if targets is None:
+            p2p = nearest_neighbors(evecs[S, :k] @ C, evecs[:, :k])
+        else:
+            p2p = targets[nearest_neighbors(evecs[S, :k] @ C, evecs[targets, :k])]
         A = evecs[S, :k_next]
         B = evecs[p2p, :k_next]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B

@@ -62,15 +62,16 @@ def heat_extrema(evals: Tensor, evecs: Tensor, faces, solver: GeodesicSolver, n_
         for v in local_maxima(h[:, col].numpy(), adj, rings=3):
             if int(v) not in ext:
                 ext.append(int(v))
-    ext_a = np.array(ext[: 4 * n_extrema], dtype=np.int64)
-    dist_all = torch.as_tensor(np.asarray(solver.distances_from(ext_a)), dtype=evecs.dtype)
+    # greedy geodesic non-maximum suppression; distances are solved only from the points kept
     keep: list[int] = []
-    for i in range(len(ext_a)):
-        if all(float(dist_all[j, ext_a[i]]) > nms_radius * EPS_KLC for j in keep):
-            keep.append(i)
+    rows: list[np.ndarray] = []
+    for v in ext[: 4 * n_extrema]:
+        if all(row[v] > nms_radius * EPS_KLC for row in rows):
+            keep.append(v)
+            rows.append(np.asarray(solver.distances_from(np.array([v]))).reshape(-1))
         if len(keep) == n_extrema:
             break
-    return ext_a[keep], dist_all[keep]
+    return np.array(keep, dtype=np.int64), torch.as_tensor(np.stack(rows), dtype=evecs.dtype)
 
 
 def _ratio(a: float, b: float) -> float:
@@ -258,7 +259,7 @@ def _embedding_residual(C: Tensor, E: Tensor, S: Tensor, targets: Tensor) -> flo
 def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
                       n_candidates: int = 4, block_refine: bool = False, min_score: float = 0.5,
-                      max_vote: float = 0.2,
+                      max_vote: float = 0.2, early_vote: float = 0.6, n_verify: int = 32,
                       timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
@@ -327,23 +328,28 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     trials = []
     for c in range(len(perms)):
         Cs = zoomout_symmetry(C0[c], evecs, mass, bands, ks, samples=sel, involution=True,
-                              block=block_refine)
-        p2p_s = nearest_neighbors(evecs[:, :ks] @ Cs, evecs[:, :ks])
+                              block=block_refine, targets=samples)
+        p2p_v = samples[nearest_neighbors(evecs[vote_samples, :ks] @ Cs, evecs[samples, :ks])]
+        p2p_s = torch.arange(V)
+        p2p_s[vote_samples] = p2p_v
         vote = float(orientation_vote(p2p_s, vt, normals, vote_samples))
         trials.append(round(vote, 3))
         # a reflection reverses the orientation everywhere: the most reversing candidate is the
         # most complete reflection (identity-like collapses vote +1, partial swaps near 0)
         if best is None or vote < best[0]:
             best = (vote, c, Cs)
-    info["trials"] = trials
+        if vote < -early_vote:
+            break  # clearly a full reflection: candidates are in order of consistency    info["trials"] = trials
     info["chosen"] = best[1]
     lap("select")
     Cf = zoomout_symmetry(best[2], evecs, mass, bands, kf, samples=samples, involution=True,
-                          block=block_refine)
+                          block=block_refine, targets=samples, n_iter_end=1)
+    Cf = zoomout_symmetry(Cf, evecs, mass, bands, kf, samples=samples, involution=True,
+                          block=block_refine, n_iter_end=1)  # last step against every vertex
     lap("refine")
     p2p = nearest_neighbors(evecs[:, :kf] @ Cf, evecs[:, :kf])
     lap("p2p")
-    score, distortion = isometry_score(solver, p2p, samples[:64])
+    score, distortion = isometry_score(solver, p2p, samples[:n_verify])
     vote = float(orientation_vote(p2p, vt, normals, vote_samples))
     info["distortion"], info["orientation"] = distortion, vote
     lap("verify")

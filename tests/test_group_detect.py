@@ -1,6 +1,5 @@
 """Whole symmetry groups (issue 4): symtorch.group_detect, the 'group'/'auto' modes of detect_symmetries."""
 import json
-import math
 import warnings
 from itertools import permutations
 
@@ -12,8 +11,9 @@ from symtorch import shapes
 from symtorch.detect import detect_symmetries
 from symtorch.eval import klc_threshold
 from symtorch.geodesics import GeodesicSolver
-from symtorch.group_detect import (candidate_tuples, canonical_order, consistent_orientation,
-                                   has_multiplicities, largest_subgroup, mean_shift)
+from symtorch.cluster import mean_shift
+from symtorch.group_detect import candidate_tuples, has_multiplicities
+from symtorch.group_maps import canonical_order, consistent_orientation, largest_subgroup
 from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates
 from symtorch.groups import check_group
 

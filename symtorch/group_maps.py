@@ -1,0 +1,155 @@
+"""Group structure from vertex maps: table, largest closed subset, orientation, element order.
+
+The matrices of a detected group can be ill-determined in a nearly repeated band, and a map can be
+wrong on a small part only; the vertex maps are the robust evidence. Products are matched to the
+nearest map by the median gap of the images of sample vertices (unit-area shape, units of
+``eps = sqrt(area / (20 pi))``), so that the table, its largest subset closed under composition
+(:func:`largest_subgroup`), the orientation flags (:func:`consistent_orientation`) and a readable
+element order (:func:`canonical_order`) rest on the maps. Table convention of :mod:`symtorch.groups`:
+``table[a, b]`` is ``a ∘ b`` ("apply b, then a").
+"""
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import torch
+from torch import Tensor
+
+log = logging.getLogger(__name__)
+
+EPS_KLC = 1.0 / math.sqrt(20 * math.pi)  # sqrt(area / (20 pi)) on a unit-area shape
+
+__all__ = ["map_table", "largest_subgroup", "consistent_orientation", "canonical_order"]
+
+
+def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """Group table of vertex maps: ``table[a, b]`` = the map nearest to ``a ∘ b`` ("b, then a").
+
+    Distances are the median Euclidean gap of the images of ``samples`` on the unit-area shape, in
+    units of eps: robust where a matrix is ill-determined in a nearly repeated band, and where a map
+    is wrong on a small part only.
+
+    Returns:
+        (table [G, G] int, gap [G, G] of each product to its nearest map).
+    """
+    P = torch.stack(p2ps)  # [G, V]
+    img = P[:, samples]  # [G, S]
+    comp = P[:, None, :].expand(-1, len(p2ps), -1).gather(2, img[None].expand(len(p2ps), -1, -1))
+    # comp[a, b] = p2p_a[p2p_b[samples]]
+    # median, not mean: a map that differs from another only on a small part (a near-identity that
+    # flips one limb) is the same element, not a new one
+    gap = (verts_unit[comp][:, :, None] - verts_unit[img][None, None]).norm(dim=-1).median(-1).values
+    best, idx = gap.min(-1)
+    return idx.numpy(), (best / EPS_KLC).numpy()
+
+
+def _is_group(T: np.ndarray) -> bool:
+    """Whether ``T [G, G]`` is a group table: a Latin square (a quasigroup) that is associative."""
+    G = T.shape[0]
+    ar = np.arange(G)
+    if (T < 0).any() or not ((np.sort(T, 0) == ar[:, None]).all() and (np.sort(T, 1) == ar[None]).all()):
+        return False
+    return bool((T[T[:, :, None], ar[None, None, :]] == T[ar[:, None, None], T[None, :, :]]).all())
+
+
+def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
+                     tol: float = 1.0) -> tuple[list[int], Tensor]:
+    """The largest set of elements (identity first, lowest ``cost`` first) closed under composition.
+
+    Greedy: an element joins when the set it generates, by products matched to the elements present
+    (within ``tol`` eps, :func:`map_table`), stays inside the verified elements; otherwise it is left
+    out (a duplicate, or a near-isometry the rest of the group does not confirm).
+
+    Returns:
+        (indices kept, [G', G'] long table among them, renumbered in the order kept).
+    """
+    T, gap = map_table(p2ps, verts_unit, samples)
+    log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
+    G = len(p2ps)
+    ok = gap <= tol
+    x = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
+    same = ((x[:, None] - x[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
+    e = 0  # the identity is the first element
+    group = [e]
+    for x in [int(i) for i in np.argsort(cost) if i != e]:
+        if x in group or same[x, group].any():
+            continue  # present, or a duplicate of an element present
+        trial = group + [x]
+        while trial is not None:
+            sub = np.ix_(trial, trial)
+            if not ok[sub].all() or same[sub][~np.eye(len(trial), dtype=bool)].any():
+                trial = None
+                break
+            new = sorted(set(T[sub].reshape(-1).tolist()) - set(trial))
+            if not new:
+                break
+            trial += new
+        if trial is not None:
+            lookup = np.full(G, -1)
+            lookup[trial] = np.arange(len(trial))
+            if _is_group(lookup[T[np.ix_(trial, trial)]]):
+                group = trial
+    idx = np.asarray(group)
+    lookup = np.full(G, -1)
+    lookup[idx] = np.arange(len(idx))
+    return group, torch.as_tensor(lookup[T[np.ix_(idx, idx)]], dtype=torch.long)
+
+
+def consistent_orientation(table: Tensor, scores) -> np.ndarray:
+    """Orientation flags consistent with the group table, closest to the per-element votes.
+
+    Orientation is a homomorphism onto Z2 (reversing ∘ reversing preserves); of the trivial one and
+    every homomorphism of the table (``groups._z2_homs``), the one that agrees best with the
+    orientation votes (``groups.orientation_score`` in [-1, 1]; negative = reversing) is returned, so
+    one ambiguous vote (a noisy map) cannot make the group unnamable.
+
+    Returns:
+        [G] bool, True for orientation-reversing elements.
+    """
+    from .groups import _z2_homs
+
+    T = np.asarray(table)
+    G = T.shape[0]
+    e = int(np.flatnonzero((T == np.arange(G)[None]).all(1))[0])
+    votes = np.asarray([float(v) for v in scores])
+    options = [np.zeros(G, dtype=bool)] + _z2_homs(T, e)
+    agree = [float((votes * np.where(h, -1.0, 1.0)).sum()) for h in options]
+    return options[int(np.argmax(agree))]
+
+
+def canonical_order(table: Tensor, reversing: Tensor, cost: list[float]) -> list[int]:
+    """An element order that reads like the paper's Table 3: the identity, the rotations as powers
+    ``r, r^2, ...`` of a generator when they form a cyclic group (else by ``cost``), then the
+    orientation-reversing coset as ``s, s∘r, s∘r^2, ...`` for its best (lowest-cost) involution ``s``.
+
+    Args:
+        table: [G, G] group table (``table[a, b] = a∘b``); reversing: [G] bool; cost: [G] (lower first).
+
+    Returns:
+        a permutation of ``range(G)``.
+    """
+    T = table.numpy()
+    G = T.shape[0]
+    e = int(np.flatnonzero((T == np.arange(G)[None]).all(1))[0])
+    rev = np.asarray(reversing, dtype=bool)
+    rots = [i for i in np.argsort(cost) if not rev[i] and i != e]
+    out = [e]
+    gen = None
+    for r in rots:  # a generator of the rotation subgroup, if it is cyclic
+        pw, seen_ = [int(r)], {e, int(r)}
+        while T[r, pw[-1]] not in seen_:
+            pw.append(int(T[r, pw[-1]]))
+            seen_.add(pw[-1])
+        if len(pw) == len(rots):
+            gen = pw
+            break
+    out += gen if gen is not None else [int(r) for r in rots]
+    refl = [int(i) for i in np.argsort(cost) if rev[i]]
+    if refl:
+        inv2 = [i for i in refl if T[i, i] == e] or refl
+        s0 = inv2[0]
+        coset = [int(T[s0, h]) for h in out]  # s∘h: apply h, then s
+        out += coset if sorted(coset) == sorted(refl) else refl
+    return out
