@@ -110,7 +110,7 @@ def _shape_inputs(shape, faces, k, spectrum):
 def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
                       spectrum: Spectrum | None = None, mode: str = "auto",
                       n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12, nms_radius: float = 2.0, min_score: float = 0.5,
-                      n_refine: int = 4,
+                      n_refine: int = 8,
                       generator: torch.Generator | None = None) -> SymmetryResult:
     """Find the global intrinsic symmetries of a triangle mesh.
 

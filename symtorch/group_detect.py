@@ -11,21 +11,32 @@ Pipeline, every step automatic (no hand-typed bands, orbit or group size):
    ordered target tuples (``C(n, m)^2 m!``); one source tuple already pins each symmetry, so here a
    few well-spread source tuples (``n_sources``) are paired with every ordered target tuple of ``P``,
    enumerated level by level and pruned on the fly when a geodesic ratio ``d(p_i, p_j) / d(q_i, q_j)``
-   (or its inverse) falls below ``delta = 0.9`` (with a slack of ``0.5 eps`` for short distances and heat-method error)
-   or when the multi-scale descriptors of ``p_i`` and ``q_i`` disagree. Counts before/after pruning
-   go to ``info``.
+   (or its inverse) falls below ``delta = 0.9`` (with a slack of ``0.5 eps`` for short distances and
+   heat-method error), or when ``p_i`` and ``q_i`` disagree in their multi-scale log HKS/WKS or in
+   their sorted geodesic distances to all of ``P`` (equal for orbit partners). Source points are
+   taken among those that have such a partner. Counts before/after pruning go to ``info``; at most
+   ``max_candidates`` (best Procrustes fit) go on.
 3. **Matrices**: one batched ``block_procrustes`` over all candidates. Constraints as in the
    reflection path: Gaussian geodesic disks of radii 0.5, 1, 2 ``eps`` around each tuple point
    (``1_{g(p)} ∘ g = 1_p``), plus the HKS/WKS columns unchanged.
 4. **Mean shift** of the flattened matrices (Euclidean, Gaussian kernel), all points moved at once
    in torch. Bandwidth: ``bandwidth`` (absolute Frobenius); default ``0.6``, below the distance 2 of
    two orthogonal matrices that differ by one sign (the closest distinct symmetries can be).
-5. **Refinement** of each mode's nearest member: spectral upsampling on sample vertices
-   (``zoomout_symmetry(block=True)``, ZoomOut kept block-orthogonal), or spectral ICP at fixed size
-   (``refine='icp'``); verification by geodesic distortion (below); duplicates removed; the set closed
-   under composition (``groups.closure``) and the added elements refined and verified too; the
-   table, inverses, orders and name by ``groups.group_info`` with orientation from
-   ``groups.orientation_reversing``.
+   Before clustering every candidate takes ``n_icp`` batched spectral-ICP steps on sample vertices,
+   so that the candidates of one symmetry found from different tuples agree (the raw Procrustes
+   solutions of noisy tuples scatter by more than the gap between elements).
+5. **Refinement, verification, closure**. Stage A, in the coarse basis and on 1000 sample vertices:
+   each mode's member nearest the mode is refined (``zoomout_samples``: ZoomOut kept
+   block-orthogonal, i.e. ``refine.zoomout_symmetry(block=True)``, or fixed-size spectral ICP with
+   ``refine='icp'``; both give the same groups, see BENCHMARKS.md), screened by distortion, and
+   dropped if it duplicates an element; the set is closed under composition (``groups.closure``) and
+   what closure adds is refined and screened the same way. Stage B upsamples the distinct elements to
+   ``k_refine``, maps every vertex (two-level nearest neighbour) and measures the distortion exactly.
+   The group is the largest set of verified elements closed under composition of their *maps*
+   (``group_maps.largest_subgroup``); table, inverses, orders and name by ``groups.group_info``, with
+   orientation flags that are a homomorphism of the table and agree best with
+   ``groups.orientation_score`` (``group_maps.consistent_orientation``); elements ordered as the
+   paper's Table 3 (identity, rotation powers, reflection coset).
 6. **Continuous symmetry** (sphere, surface of revolution): an incommensurate rotation (0.55 and
    0.83 rad) of the first multi-dimensional band is refined; if both stay where they were put *and*
    are near-isometries, the shape has a one-parameter family of symmetries and the result is
@@ -42,6 +53,13 @@ no new distance field. The elements that pass are then measured exactly,
 per element), and that is the distortion reported and thresholded (``max_distortion = 0.25``).
 True symmetries measure 0.0-0.15 (table.off 0.03, SCAPE's mirror 0.12); wrong maps > 0.3 (the
 spurious "rotation" the screen lets through on SCAPE mesh000 measures 0.35).
+
+Limits: triangle meshes only (``detect_symmetries`` refuses point clouds); one connected component
+(HKS times use the first non-zero eigenvalue); a symmetry is representable only where the spectrum
+keeps its eigenspaces together, so a shape whose quarter-turn eigenspaces split by more than
+``eigen_bands``' tolerance (SHREC'07 table 143: 14 %) gives the subgroup its bands can carry; the
+continuous test looks at the first repeated band only (a rotation axis that shows up only in higher
+bands is missed, and the shape is treated as finite).
 """
 from __future__ import annotations
 
@@ -89,7 +107,8 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
         [N] vertex ids, coarse scales first.
     """
     V = evecs.shape[0]
-    t0 = 4 * math.log(10) / float(evals[1])
+    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
+    t0 = 4 * math.log(10) / float(lam[0])
     h = hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))  # [V, T]
     adj = vertex_adjacency(faces, V)
     cand: list[int] = []
@@ -456,7 +475,6 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     off = dd[~np.eye(len(pts), dtype=bool)]
     allowed = dd <= max(desc_tol * float(np.median(off)) if off.size else 0.0, 1e-9)
     t = min(m + 1, len(pts))
-    partner = dist_profile_agree = None
     # a second invariant: the sorted distances to all of P (equal for orbit partners if P is invariant)
     prof = np.sort(dist, 1)
     pd = np.abs(prof[:, None, :] - prof[None, :, :])

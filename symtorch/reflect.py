@@ -258,7 +258,7 @@ def _embedding_residual(C: Tensor, E: Tensor, S: Tensor, targets: Tensor) -> flo
 
 def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
-                      n_candidates: int = 4, block_refine: bool = False, min_score: float = 0.5,
+                      n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
                       max_vote: float = 0.2, early_vote: float = 0.6, n_verify: int = 32,
                       timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
@@ -339,7 +339,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         if best is None or vote < best[0]:
             best = (vote, c, Cs)
         if vote < -early_vote:
-            break  # clearly a full reflection: candidates are in order of consistency    info["trials"] = trials
+            break  # clearly a full reflection: candidates are in order of consistency
+    info["trials"] = trials
     info["chosen"] = best[1]
     lap("select")
     Cf = zoomout_symmetry(best[2], evecs, mass, bands, kf, samples=samples, involution=True,
