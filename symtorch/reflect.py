@@ -187,7 +187,8 @@ def involution_candidates(desc: np.ndarray, dist: np.ndarray, n_partners: int = 
     return [out[i] for i in order], np.asarray(scores)[order], len(seeds)
 
 
-def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor) -> tuple[float, float]:
+def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor,
+                   return_worst: bool = False) -> tuple[float, float] | tuple[float, float, float]:
     """Confidence that ``p2p`` is an isometry, from geodesic distortion among sample points.
 
     distortion = mean over sample pairs of ``|d(g(s_i), g(s_j)) - d(s_i, s_j)|`` on the unit-area
@@ -195,7 +196,9 @@ def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor) -> tupl
     truth, distortion ~0.1, scores ~0.99; a wrong map, distortion > 1, scores < 0.4).
 
     Returns:
-        (score in [0, 1], distortion).
+        (score in [0, 1], distortion), and with ``return_worst`` the largest per-sample distortion
+        (mean over the other samples), which exposes a map that is good on most of the shape but
+        wrong on one part of it.
     """
     s = samples.cpu().numpy()
     gs = p2p[samples].cpu().numpy()
@@ -203,7 +206,10 @@ def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor) -> tupl
     D1 = np.asarray(solver.distances_from(gs))[:, gs]
     D0 = 0.5 * (D0 + D0.T)
     D1 = 0.5 * (D1 + D1.T)
-    distortion = float(np.abs(D1 - D0).mean() / EPS_KLC)
+    err = np.abs(D1 - D0) / EPS_KLC
+    distortion = float(err.mean())
+    if return_worst:
+        return math.exp(-distortion ** 2), distortion, float(err.mean(1).max())
     return math.exp(-distortion ** 2), distortion
 
 
@@ -259,7 +265,7 @@ def _embedding_residual(C: Tensor, E: Tensor, S: Tensor, targets: Tensor) -> flo
 def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
-                      max_vote: float = 0.2, early_vote: float = 0.6, n_verify: int = 32,
+                      max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, n_verify: int = 32,
                       timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
@@ -271,6 +277,10 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         n_candidates: candidate permutations refined and compared.
         min_score: smallest isometry confidence (``isometry_score``) a reported reflection has.
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
+        max_worst: and no sample's mean geodesic distortion exceeds this (KLC units): a map that
+            is right on most of the shape but wrong on one part is not a symmetry.
+        early_vote: stop comparing candidates once one votes below ``-early_vote``.
+        n_verify: samples of the final geodesic verification (2 heat solves each).
 
     Returns:
         SymmetryResult (``group`` left empty for the caller).
@@ -350,11 +360,12 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     lap("refine")
     p2p = nearest_neighbors(evecs[:, :kf] @ Cf, evecs[:, :kf])
     lap("p2p")
-    score, distortion = isometry_score(solver, p2p, samples[:n_verify])
+    score, distortion, worst = isometry_score(solver, p2p, samples[:n_verify], return_worst=True)
+    info["worst_distortion"] = worst
     vote = float(orientation_vote(p2p, vt, normals, vote_samples))
     info["distortion"], info["orientation"] = distortion, vote
     lap("verify")
-    if score >= min_score and vote < -max_vote:
+    if score >= min_score and vote < -max_vote and worst < max_worst:
         symmetries.append(Symmetry(Cf, p2p, "reflection", 2, score))
     return SymmetryResult(symmetries, spectrum, bands, timings=_timings(timer), info=info)
 

@@ -116,10 +116,17 @@ def propeller(subdivisions: int = 4, blades: int = 3, twist: float = 1.2,
 
 
 def asymmetric(subdivisions: int = 3) -> tuple[np.ndarray, np.ndarray]:
-    """Trivial group: bumps of different sizes at generic places."""
+    """Trivial group: a lopsided body (low-order terms with no common symmetry) with bumps of
+    different sizes at generic places. Bumps alone on a symmetric ellipsoid are not enough: a
+    reflection of the body is then a near-isometry everywhere but at the bumps."""
     centers = [[0.7, 0.2, 0.5], [-0.3, 0.8, 0.1], [0.1, -0.6, 0.7], [0.4, -0.2, -0.9], [-0.8, -0.4, -0.3]]
     heights = [0.9, 0.6, 0.45, 0.3, 0.7]
-    return radial_surface(lambda u: 1 + _bumps(u, centers, heights), subdivisions, (1.0, 1.15, 0.85))
+
+    def r(u):
+        x, y, z = u.T
+        body = 1 + 0.35 * x * y + 0.3 * z ** 3 + 0.25 * x + 0.2 * y * z - 0.15 * x * z
+        return body + _bumps(u, centers, heights)
+    return radial_surface(r, subdivisions, (1.0, 1.15, 0.85))
 
 
 def ellipsoid(subdivisions: int = 3, axes=(1.0, 1.0, 1.6)) -> tuple[np.ndarray, np.ndarray]:

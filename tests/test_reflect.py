@@ -1,0 +1,136 @@
+"""Reflective symmetry detection (symtorch.reflect, detect_symmetries(mode='reflection'))."""
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from symtorch import detect_symmetries, laplacian_spectrum
+from symtorch.cli import main as cli_main
+from symtorch.geodesics import GeodesicSolver
+from symtorch.reflect import (EPS_KLC, extend_involution, involution_candidates, orientation_vote,
+                              seed_pairs, vertex_normals)
+from symtorch.sampling import farthest_point_sampling
+from symtorch.shapes import asymmetric, mirror_blob, symmetry_maps, true_symmetries
+
+
+@pytest.fixture(scope="module")
+def blob():
+    v, f = mirror_blob(3)
+    mirror = symmetry_maps(v, true_symmetries("mirror_blob"))[1]
+    return torch.as_tensor(v), torch.as_tensor(f), torch.as_tensor(mirror)
+
+
+def test_mirror_blob_reflection_is_recovered_exactly(blob):
+    v, f, mirror = blob
+    res = detect_symmetries(v, f, mode="reflection")
+    assert [s.kind for s in res.symmetries] == ["identity", "reflection"]
+    refl = res.reflection
+    # exact on a mesh built mirror-symmetric: every vertex goes to its mirror vertex
+    assert torch.equal(refl.p2p, mirror)
+    C = refl.C
+    K = C.shape[0]
+    assert torch.allclose(C @ C.T, torch.eye(K, dtype=C.dtype), atol=1e-6)  # orthogonal
+    assert torch.allclose(C, C.T, atol=1e-6)                                 # an involution
+    # block-diagonal over the eigenvalue bands it was solved in (ALGORITHM §2)
+    from symtorch.procrustes import block_mask
+    assert float((C * ~block_mask(res.bands, K)).abs().max()) < 1e-6
+    assert refl.score > 0.9 and refl.order == 2
+    assert res.group["name"] == "Cs" and res.group["order"] == 2
+
+
+def test_asymmetric_shape_gives_the_identity_alone():
+    v, f = asymmetric(3)
+    res = detect_symmetries(v, f, mode="reflection")
+    assert [s.kind for s in res.symmetries] == ["identity"]
+    assert res.group["order"] == 1
+    res = detect_symmetries(v, f)  # the automatic path agrees
+    assert len(res.symmetries) == 1
+
+
+def test_orientation_vote_separates_reflection_from_identity(blob):
+    v, f, mirror = blob
+    vn = vertex_normals(v, f)
+    S = farthest_point_sampling(v, 200)
+    assert float(orientation_vote(torch.arange(len(v)), v, vn, S)) == pytest.approx(1.0)
+    assert float(orientation_vote(mirror, v, vn, S)) < -0.9
+    batch = torch.stack([torch.arange(len(v)), mirror])
+    votes = orientation_vote(batch, v, vn, S)
+    assert votes.shape == (2,) and votes[0] > 0.9 and votes[1] < -0.9
+
+
+def _tips():
+    # five points of a symmetric "star figure": a head on the axis, two mirrored pairs of limbs
+    pts = np.array([[0, 3.0], [-2, 1], [2, 1], [-1, -2], [1, -2]])
+    dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1) * EPS_KLC
+    desc = np.array([[0.0], [1.0], [1.0], [2.0], [2.0]])
+    return dist, desc
+
+
+def test_extend_involution_completes_the_permutation():
+    dist, desc = _tips()
+    allowed = np.ones((5, 5), dtype=bool)
+    perm = extend_involution(((1, 2), (3, 4)), dist, allowed, tol=0.5 * EPS_KLC)
+    assert perm.tolist() == [0, 2, 1, 4, 3]  # the head is a fixed point
+    perm = extend_involution(((1, 2), (0, 0)), dist, allowed, tol=0.5 * EPS_KLC)
+    assert perm.tolist() == [0, 2, 1, 4, 3]
+
+
+def test_involution_candidates_rank_the_full_swap_first():
+    dist, desc = _tips()
+    seeds = seed_pairs(desc, dist)
+    assert seeds, "mirrored limbs make seeds"
+    perms, scores, n_seeds = involution_candidates(desc, dist)
+    assert n_seeds == len(seeds)
+    assert perms[0].tolist() == [0, 2, 1, 4, 3]
+    assert scores[0] == pytest.approx(0.0, abs=1e-9)
+    assert all(s > scores[0] for s in scores[1:])
+    # duplicates collapse: each permutation appears once
+    assert len({tuple(p) for p in perms}) == len(perms)
+
+
+def test_detect_accepts_a_precomputed_spectrum(blob):
+    v, f, mirror = blob
+    spec = laplacian_spectrum(v, f, k=90)
+    res = detect_symmetries(v, f, spectrum=spec, mode="reflection")
+    assert res.spectrum is spec
+    assert torch.equal(res.reflection.p2p, mirror)
+
+
+def test_detect_errors():
+    v, f = mirror_blob(1)
+    with pytest.raises(ValueError, match="point cloud"):
+        detect_symmetries(v, None)
+    with pytest.raises(ValueError, match="mode"):
+        detect_symmetries(v, f, mode="nope")
+
+
+def test_cli_detect_json_schema(tmp_path, capsys):
+    out, mats = tmp_path / "r.json", tmp_path / "r.npz"
+    assert cli_main(["detect", "--demo", "--out", str(out), "--matrices", str(mats)]) == 0
+    d = json.loads(out.read_text())
+    assert set(d) >= {"mesh", "n_vertices", "symmetries", "group", "timings"}
+    V = d["n_vertices"]
+    assert d["symmetries"][0]["kind"] == "identity"
+    assert d["symmetries"][0]["p2p"] == list(range(V))
+    for s in d["symmetries"]:
+        assert set(s) >= {"kind", "order", "score", "p2p"}
+        assert len(s["p2p"]) == V and min(s["p2p"]) >= 0 and max(s["p2p"]) < V
+    assert d["group"]["order"] == len(d["symmetries"]) == 2
+    assert "spectrum" in d["timings"]
+    z = np.load(mats)
+    assert z["C"].shape == (2, int(z["k"]), int(z["k"]))
+    assert "timings" in capsys.readouterr().err
+
+
+def test_real_scape_mesh_end_to_end(shared_data):
+    from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
+    from symtorch.eval import geodesic_errors, klc_rates
+    name, path = list_benchmark("SCAPE")[1]
+    v, f = load_mesh(path)
+    res = detect_symmetries(v, f)
+    assert res.reflection is not None and res.group["name"] == "Cs"
+    solver = GeodesicSolver(v, f)
+    errors = geodesic_errors(solver, res.reflection.p2p.numpy(), load_ground_truth("SCAPE", name).pairs)
+    assert float(klc_rates(errors, solver.area)) >= 0.95
