@@ -84,7 +84,6 @@ def run_detector(verts, faces, label: str, **kw):
 
 
 def _cmd_detect(args) -> int:
-    import torch
 
     t0 = time.perf_counter()
     verts, faces, label = load_shape(args.mesh, args.demo)

@@ -32,7 +32,6 @@ from torch import Tensor
 
 from .descriptors import descriptors, hks
 from .geodesics import GeodesicSolver
-from .groups import orientation_score
 from .maps import nearest_neighbors
 from .procrustes import block_procrustes
 from .refine import zoomout_symmetry

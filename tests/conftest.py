@@ -1,5 +1,4 @@
 """Shared test set-up: the tests folder on sys.path (for ``shapes``), the shared-data location."""
-import os
 import sys
 from pathlib import Path
 

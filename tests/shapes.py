@@ -1,5 +1,4 @@
 """Shapes built in code with known symmetries, shared by the tests."""
-import numpy as np
 import torch
 
 from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries

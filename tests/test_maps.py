@@ -5,7 +5,6 @@ where a rotation and a mirror do not commute, so the order of the matrix product
 """
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import torch
 

@@ -1,6 +1,5 @@
 """Reflective symmetry detection (symtorch.reflect, detect_symmetries(mode='reflection'))."""
 import json
-import math
 
 import numpy as np
 import pytest

@@ -1,11 +1,8 @@
 """Sample transforms: reprs, determinism under a generator, and the symmetry relabelling."""
 import inspect
 
-import numpy as np
 import pytest
 import torch
-import trimesh
-from scipy.spatial import cKDTree
 
 from symtorch.data import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                            NormalizeArea, RandomBandRotation, RandomEigenSigns, RandomSymmetry,
