@@ -45,7 +45,9 @@ def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Ten
         from scipy.spatial import cKDTree
 
         tree = cKDTree(points.detach().double().numpy())
-        _, idx = tree.query(queries.detach().double().numpy(), k=1, workers=-1)
+        # threads pay off only for large queries (each call starts them anew)
+        workers = -1 if queries.shape[0] >= 20000 else 1
+        _, idx = tree.query(queries.detach().double().numpy(), k=1, workers=workers)
         return torch.as_tensor(np.asarray(idx, dtype=np.int64))
     out = torch.empty(queries.shape[0], dtype=torch.long, device=queries.device)
     sq = points.square().sum(-1)  # [M]

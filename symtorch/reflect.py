@@ -271,8 +271,9 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     Args:
         verts: [V, 3] float64 (original units); faces: [F, 3] long.
         spectrum: ``laplacian_spectrum(verts, faces, k > k_refine)`` (unit area).
-        k: coarse basis size; k_select: basis size the candidates are compared in; k_refine: final
-            basis size (each snapped to a band end).
+        k: coarse basis size the upsampling starts from, or several (each is tried per candidate;
+            on SCAPE a second start of 12 or 20 did not help); k_select: basis size the candidates
+            are compared in; k_refine: final basis size (each snapped to a band end).
         n_candidates: candidate permutations refined and compared.
         min_score: smallest isometry confidence (``isometry_score``) a reported reflection has.
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
@@ -288,7 +289,11 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
     bands = eigen_bands(evals)
     bands = bands[:-1] if len(bands) > 1 else bands  # the last band may be cut by the eigensolve
-    k0, ks, kf = (band_boundary(bands, x) for x in (k, k_select, k_refine))
+    ks, kf = band_boundary(bands, k_select), band_boundary(bands, k_refine)
+    # coarse sizes the upsampling may start from: near-identity and reflection differ in few of the
+    # first modes, so a small start can collapse to the identity where a larger one holds
+    starts = sorted({band_boundary(bands, x) for x in (k if isinstance(k, (tuple, list)) else (k,))})
+    k0 = starts[-1]
     V = evecs.shape[0]
     verts_unit = torch.as_tensor(verts) * spectrum.scale
     solver = GeodesicSolver(verts_unit, faces)
@@ -299,7 +304,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     logdesc = torch.log(desc[ext].clamp_min(1e-12)).numpy()
     perms, perm_scores, n_seeds = involution_candidates(logdesc, D_ext)
     lap("candidates")
-    info = {"n_extrema": int(len(ext)), "n_seeds": n_seeds, "n_candidates": len(perms), "k0": k0,
+    info = {"n_extrema": int(len(ext)), "n_seeds": n_seeds, "n_candidates": len(perms), "k0": starts,
             "k_refine": kf, "candidate_scores": [round(float(s), 4) for s in perm_scores[:8]]}
     symmetries = [Symmetry(torch.eye(kf, dtype=evecs.dtype), torch.arange(V), "identity", 1, 1.0)]
     if not perms:
@@ -335,8 +340,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     vote_samples = samples[: min(500, len(samples))]
     best = None
     trials = []
-    for c in range(len(perms)):
-        Cs = zoomout_symmetry(C0[c], evecs, mass, bands, ks, samples=sel, involution=True,
+    for c, kc in itertools.product(range(len(perms)), starts):
+        Cs = zoomout_symmetry(C0[c, :kc, :kc], evecs, mass, bands, ks, samples=sel, involution=True,
                               block=block_refine, targets=samples)
         p2p_v = samples[nearest_neighbors(evecs[vote_samples, :ks] @ Cs, evecs[samples, :ks])]
         p2p_s = torch.arange(V)
@@ -346,7 +351,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         # a reflection reverses the orientation everywhere: the most reversing candidate is the
         # most complete reflection (identity-like collapses vote +1, partial swaps near 0)
         if best is None or vote < best[0]:
-            best = (vote, c, Cs)
+            best = (vote, (c, kc), Cs)
         if vote < -early_vote:
             break  # clearly a full reflection: candidates are in order of consistency
     info["trials"] = trials

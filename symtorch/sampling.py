@@ -73,11 +73,16 @@ def farthest_point_sampling(points: Tensor, n: int, start: int = 0) -> Tensor:
     """
     V = points.shape[0]
     n = min(n, V)
-    out = torch.empty(n, dtype=torch.long, device=points.device)
-    dist = torch.full((V,), float("inf"), dtype=points.dtype, device=points.device)
+    # the loop is sequential by nature: numpy on the host is ~5x faster than small torch ops
+    x = np.ascontiguousarray(points.detach().cpu().numpy(), dtype=np.float64)
+    out = np.empty(n, dtype=np.int64)
+    dist = np.full(V, np.inf)
+    d = np.empty(V)
     cur = start
     for i in range(n):
         out[i] = cur
-        dist = torch.minimum(dist, (points - points[cur]).square().sum(-1))
+        diff = x - x[cur]
+        np.einsum("ij,ij->i", diff, diff, out=d)
+        np.minimum(dist, d, out=dist)
         cur = int(dist.argmax())
-    return out
+    return torch.as_tensor(out, device=points.device)

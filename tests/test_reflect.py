@@ -133,3 +133,10 @@ def test_real_scape_mesh_end_to_end(shared_data):
     solver = GeodesicSolver(v, f)
     errors = geodesic_errors(solver, res.reflection.p2p.numpy(), load_ground_truth("SCAPE", name).pairs)
     assert float(klc_rates(errors, solver.area)) >= 0.95
+
+
+def test_several_coarse_starts(blob):
+    v, f, mirror = blob
+    res = detect_symmetries(v, f, mode="reflection", k=(6, 12))
+    assert torch.equal(res.reflection.p2p, mirror)
+    assert res.info["k0"] == sorted(set(res.info["k0"])) and len(res.info["k0"]) >= 1
