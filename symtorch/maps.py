@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+_BRUTE_FORCE_MAX = 2 * 10 ** 7  # query x point pairs below which brute force is used
 _KDTREE_MAX_DIM = 1024  # spectral embeddings are 2-manifolds: KD-trees stay fast in 100+ dims
 
 
@@ -41,7 +42,10 @@ def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Ten
     Returns:
         [N] long, on the device of ``queries``. A KD-tree on CPU for small D, else blocked ``cdist``.
     """
-    if queries.device.type == "cpu" and queries.shape[-1] <= _KDTREE_MAX_DIM:
+    # a KD-tree wins on large CPU problems; on small ones (and when queries lie far from the
+    # points, where its search degrades) blocked brute force is faster and steadier
+    big = queries.shape[0] * points.shape[0] > _BRUTE_FORCE_MAX
+    if queries.device.type == "cpu" and big and queries.shape[-1] <= _KDTREE_MAX_DIM:
         from scipy.spatial import cKDTree
 
         tree = cKDTree(points.detach().double().numpy())
