@@ -221,14 +221,16 @@ def vertex_normals(verts: Tensor, faces: Tensor) -> Tensor:
 
 
 def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tensor, n_neighbors: int = 4,
-                     max_stretch: float = 3.0) -> Tensor:
+                     max_stretch: float = 3.0, min_cos: float = 0.5) -> Tensor:
     """Orientation of a vertex map at the scale of a sample spacing, robust to vertex-level noise.
 
     Every sample ``s`` and two of its nearest samples ``a, b`` form a small triangle; its orientation
     about the normal at ``s`` is compared with that of the image triangle ``g(s), g(a), g(b)`` about
     the normal at ``g(s)``. Triangles several edges wide keep their orientation under the jitter of a
     nearest-neighbour map, where the mesh's own faces do not. Images that collapse or stretch more
-    than ``max_stretch`` times do not vote.
+    than ``max_stretch`` times do not vote, nor do triangles whose corner normals disagree (cosine
+    below ``min_cos``): on a posed shape, Euclidean neighbours may lie on two touching parts (an arm
+    against the torso), and such a triangle has no orientation.
 
     Args:
         p2p: [..., V] vertex maps; verts: [V, 3]; normals: [V, 3]; samples: [S] vertex ids.
@@ -249,7 +251,12 @@ def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tenso
     d0, l0 = det(s, a, b)
     g = p2p[..., s], p2p[..., a], p2p[..., b]
     d1, l1 = det(*g)
-    ok = (d0.abs() > 0.1 * l0.square()) & (d1.abs() > 0.05 * l1.square()) & (l1 < max_stretch * l0)
+
+    def flat(p, q, r):  # all three normals agree: the triangle lies on one sheet of the surface
+        return ((normals[p] * normals[q]).sum(-1) > min_cos) & ((normals[p] * normals[r]).sum(-1) > min_cos)
+
+    ok = (d0.abs() > 0.1 * l0.square()) & (d1.abs() > 0.05 * l1.square()) & (l1 < max_stretch * l0) \
+        & flat(s, a, b) & flat(*g)
     vote = torch.sign(d0) * torch.sign(d1) * ok
     return vote.sum((-2, -1)) / ok.sum((-2, -1)).clamp_min(1)
 
