@@ -271,7 +271,8 @@ def _embedding_residual(C: Tensor, E: Tensor, S: Tensor, targets: Tensor) -> flo
 def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
-                      max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, n_verify: int = 32,
+                      max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, early_distortion: float = 0.25,
+                      select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
                       timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
@@ -286,7 +287,10 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
         max_worst: and no sample's mean geodesic distortion exceeds this (KLC units): a map that
             is right on most of the shape but wrong on one part is not a symmetry.
-        early_vote: stop comparing candidates once one votes below ``-early_vote``.
+        select_vote: candidates voting below ``-select_vote`` are compared by geodesic distortion
+            (``isometry_score`` on ``n_select_verify`` samples), the others only by their vote.
+        early_vote, early_distortion: stop comparing candidates once one votes below
+            ``-early_vote`` with a distortion below ``early_distortion`` (KLC units).
         n_verify: samples of the final geodesic verification (2 heat solves each).
 
     Returns:
@@ -354,12 +358,18 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         p2p_s = torch.arange(V)
         p2p_s[vote_samples] = p2p_v
         vote = float(orientation_vote(p2p_s, vt, normals, vote_samples))
-        trials.append(round(vote, 3))
-        # a reflection reverses the orientation everywhere: the most reversing candidate is the
-        # most complete reflection (identity-like collapses vote +1, partial swaps near 0)
-        if best is None or vote < best[0]:
-            best = (vote, (c, kc), Cs)
-        if vote < -early_vote:
+        # a reflection reverses the orientation everywhere (identity-like collapses vote +1,
+        # partial swaps near 0); among the clearly reversing candidates the most isometric one
+        # wins: a limb mirrored onto itself instead of onto its twin also reverses orientation,
+        # but breaks the distances where it joins the body
+        distortion = math.inf
+        if vote < -select_vote:
+            distortion = isometry_score(solver, p2p_s, vote_samples[:n_select_verify])[1]
+        trials.append((round(vote, 3), round(distortion, 3)))
+        key = (0, distortion) if math.isfinite(distortion) else (1, vote)
+        if best is None or key < best[0]:
+            best = (key, (c, kc), Cs)
+        if vote < -early_vote and distortion < early_distortion:
             break  # clearly a full reflection: candidates are in order of consistency
     info["trials"] = trials
     info["chosen"] = best[1]
