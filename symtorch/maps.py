@@ -10,7 +10,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-_BRUTE_FORCE_MAX = 2 * 10 ** 7  # query x point pairs below which brute force is used
+_BRUTE_FORCE_MAX = 2 * 10 ** 8  # query x point pairs up to which brute force is used on CPU
+_EXACT_DTYPE_MAX = 2 * 10 ** 7  # above this, brute force runs in float32
 _KDTREE_MAX_DIM = 1024  # spectral embeddings are 2-manifolds: KD-trees stay fast in 100+ dims
 
 
@@ -40,11 +41,13 @@ def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Ten
         points: [M, D].
 
     Returns:
-        [N] long, on the device of ``queries``. A KD-tree on CPU for small D, else blocked ``cdist``.
+        [N] long, on the device of ``queries``. Blocked brute force (float32 above
+        ``_EXACT_DTYPE_MAX`` pairs: distance ties may then resolve differently), or on CPU above
+        ``_BRUTE_FORCE_MAX`` pairs a KD-tree (spectral embeddings are 2-manifolds, so it stays
+        fast in 100+ dimensions, but its search degrades when queries lie far from the points).
     """
-    # a KD-tree wins on large CPU problems; on small ones (and when queries lie far from the
-    # points, where its search degrades) blocked brute force is faster and steadier
-    big = queries.shape[0] * points.shape[0] > _BRUTE_FORCE_MAX
+    pairs = queries.shape[0] * points.shape[0]
+    big = pairs > _BRUTE_FORCE_MAX
     if queries.device.type == "cpu" and big and queries.shape[-1] <= _KDTREE_MAX_DIM:
         from scipy.spatial import cKDTree
 
@@ -54,6 +57,9 @@ def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Ten
         _, idx = tree.query(queries.detach().double().numpy(), k=1, workers=workers)
         return torch.as_tensor(np.asarray(idx, dtype=np.int64))
     out = torch.empty(queries.shape[0], dtype=torch.long, device=queries.device)
+    if pairs > _EXACT_DTYPE_MAX and queries.dtype == torch.float64:
+        queries, points = queries.float(), points.float()
+        chunk = max(min(chunk, 2 ** 25 // max(points.shape[0], 1)), 1)  # ~128 MB of distances
     sq = points.square().sum(-1)  # [M]
     for s in range(0, queries.shape[0], chunk):
         q = queries[s:s + chunk]
