@@ -101,7 +101,11 @@ def _cmd_detect(args) -> int:
     out["timings"]["total"] = round(time.perf_counter() - t0, 4)
     names = ", ".join(f"{s['kind']}({s['score']:.2f})" for s in out["symmetries"])
     grp = out["group"]
-    _progress(f"group {grp.get('name')} of order {grp.get('order')}: {names}")
+    if out.get("continuous"):
+        _progress("continuous symmetry (a surface of revolution or a sphere): no finite group; "
+                  "only the identity is returned")
+    else:
+        _progress(f"group {grp.get('name')} of order {grp.get('order')}: {names}")
     _progress("timings " + " ".join(f"{k}={v:.3f}s" for k, v in out["timings"].items()))
     if args.matrices:
         d = os.path.dirname(os.path.abspath(args.matrices))
