@@ -83,13 +83,18 @@ def run_detector(verts, faces, label: str, **kw):
                        f"{' '.join(str(e).split())}){hint}") from None
 
 
-def _cmd_detect(args) -> int:
-
-    t0 = time.perf_counter()
+def load_triangle_mesh(args, task: str = "symmetry detection", note: str = ""):
+    """``load_shape`` for the sub-commands that need faces: (verts, faces, label); progress line."""
     verts, faces, label = load_shape(args.mesh, args.demo)
     if faces is None:
-        raise CLIError(f"{label}: is a point cloud (no faces); symmetry detection needs a triangle mesh")
-    _progress(f"{label}: {len(verts)} vertices, {len(faces)} faces")
+        raise CLIError(f"{label}: is a point cloud (no faces); {task} needs a triangle mesh")
+    _progress(f"{label}: {len(verts)} vertices, {len(faces)} faces{note}")
+    return verts, faces, label
+
+
+def _cmd_detect(args) -> int:
+    t0 = time.perf_counter()
+    verts, faces, label = load_triangle_mesh(args)
     kw = {}
     if args.k is not None:
         kw["k"] = args.k

@@ -292,13 +292,10 @@ def _group_table(res) -> np.ndarray | None:
 
 
 def _cmd_show(args) -> int:
-    from .cli import CLIError, _progress, load_shape, run_detector
+    from .cli import _progress, load_triangle_mesh, run_detector
 
     t0 = time.perf_counter()
-    verts, faces, label = load_shape(args.mesh, args.demo)
-    if faces is None:
-        raise CLIError(f"{label}: is a point cloud (no faces); `show` needs a triangle mesh")
-    _progress(f"{label}: {len(verts)} vertices, {len(faces)} faces; detecting")
+    verts, faces, label = load_triangle_mesh(args, "`show`", "; detecting")
     kw = {k: v for k, v in (("k", args.k), ("k_refine", args.k_refine)) if v is not None}
     res = run_detector(verts, faces, label, **kw)
     p2ps = res.p2ps.cpu().numpy()
