@@ -18,7 +18,6 @@ import inspect
 import json
 import logging
 import os
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 import torch
 
 from ._checks import check_mesh, check_verts
+from .io import atomic_write
 from .spectrum import Spectrum, generalized_eigsh, laplacian_matrices, laplacian_spectrum
 
 log = logging.getLogger(__name__)
@@ -137,21 +137,16 @@ def _read(path: Path, key: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, fl
 def _write(path: Path, key: dict, spec: Spectrum) -> None:
     """Atomic write: a temporary file in the same folder, then ``os.replace``."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
             np.savez(fh, meta=np.array(json.dumps({"version": _version(), "key": key})),
                      evals=spec.evals.detach().cpu().double().numpy(),
                      evecs=spec.evecs.detach().cpu().double().numpy(),
                      mass=spec.mass.detach().cpu().double().numpy(),
                      scale=np.array(spec.scale, dtype=np.float64))
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 def cached_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = True,

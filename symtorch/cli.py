@@ -10,7 +10,6 @@ import json
 import logging
 import os
 import sys
-import tempfile
 import time
 import warnings
 
@@ -46,17 +45,14 @@ def load_shape(path: str | None, demo: str | None = None):
 
 def write_json_atomic(path: str, obj) -> None:
     """Write ``obj`` as JSON to ``path`` via a temporary file and a rename (never half-written)."""
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as fh:
+    from .io import atomic_write
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w") as fh:
             json.dump(obj, fh)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 def run_detector(verts, faces, label: str, **kw):
@@ -113,14 +109,17 @@ def _cmd_detect(args) -> int:
         _progress(f"group {grp.get('name')} of order {grp.get('order')}: {names}")
     _progress("timings " + " ".join(f"{k}={v:.3f}s" for k, v in out["timings"].items()))
     if args.matrices:
-        d = os.path.dirname(os.path.abspath(args.matrices))
-        os.makedirs(d, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".npz")
-        os.close(fd)
-        np.savez(tmp, C=res.fmaps.cpu().numpy(), p2p=res.p2ps.cpu().numpy(),
-                 k=np.int64(res.fmaps.shape[-1]), evals=res.spectrum.evals[: res.fmaps.shape[-1]].cpu().numpy(),
-                 kinds=np.array([s.kind for s in res.symmetries]))
-        os.replace(tmp, args.matrices)
+        from .io import atomic_write
+        os.makedirs(os.path.dirname(os.path.abspath(args.matrices)), exist_ok=True)
+
+        def write(tmp: str) -> None:
+            with open(tmp, "wb") as fh:  # a file object: np.savez would add .npz to a path
+                np.savez(fh, C=res.fmaps.cpu().numpy(), p2p=res.p2ps.cpu().numpy(),
+                         k=np.int64(res.fmaps.shape[-1]),
+                         evals=res.spectrum.evals[: res.fmaps.shape[-1]].cpu().numpy(),
+                         kinds=np.array([s.kind for s in res.symmetries]))
+
+        atomic_write(args.matrices, write)
         _progress(f"matrices -> {args.matrices}")
     if args.out:
         write_json_atomic(args.out, out)

@@ -340,7 +340,7 @@ def write_mesh(path: str | os.PathLike, verts, faces=None) -> None:
     v = check_verts(verts)
     f = None if faces is None else check_faces(faces, v.shape[0])
     data = {".off": _off_bytes, ".obj": _obj_bytes, ".ply": _ply_bytes}[ext](v, f)
-    _atomic_write(path, data)
+    _write_bytes(path, data)
 
 
 def _savetxt(arr: np.ndarray, fmt: str, prefix: str = "") -> str:
@@ -379,21 +379,38 @@ def _ply_bytes(v: np.ndarray, f: np.ndarray | None) -> bytes:
     return ("\n".join(header) + "\nend_header\n").encode("ascii") + body
 
 
-def _atomic_write(path: str, data: bytes) -> None:
+def atomic_write(path: str | os.PathLike, write) -> None:
+    """Write a file so that no reader ever sees it half-written: the one way symtorch writes files.
+
+    ``write(tmp)`` fills a temporary file beside ``path`` (``.<name>.<random>.tmp``, permissions from
+    the umask like a plain ``open``); it is flushed to disk and moved into place with ``os.replace``.
+    On any error the temporary file is removed and the error re-raised; ``path`` is untouched.
+
+    Args:
+        path: the file to write (its folder must exist).
+        write: callable taking the temporary file's path, e.g. ``lambda tmp: torch.save(x, tmp)``.
+    """
+    path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{secrets.token_hex(4)}.tmp")
-    # os.open with mode 0o666 lets the umask pick the permissions, like a plain open()
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
+        write(tmp)
+        with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def _write_bytes(path: str, data: bytes) -> None:
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+
+    atomic_write(path, write)
 
 
 # ------------------------------------------------------------------------------------------ report

@@ -50,7 +50,8 @@ from pathlib import Path
 
 import torch
 
-from .data.dataset import (MESH_SUFFIXES, MeshDataset, _atomic_write, _natural_key, cache_key,
+from .io import atomic_write
+from .data.dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
                            file_stamp, process_file, read_meta, write_meta)
 from .data.transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                               NormalizeArea)
@@ -366,7 +367,7 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
                     "dtype": str(dtype).removeprefix("torch."), "ground_truth": ground_truth,
                     "default_pre_transform": repr(pre_transform) == repr(
                         default_pre_transform(k, detect, seed)), "key": key}
-        _atomic_write(out / SETTINGS, lambda tmp: Path(tmp).write_text(json.dumps(settings, indent=1)))
+        atomic_write(out / SETTINGS, lambda tmp: Path(tmp).write_text(json.dumps(settings, indent=1)))
     if world == 1:
         _remove_temporaries(out)
 
@@ -525,7 +526,7 @@ def _compact_failures(out: Path, items: list[_Item], key: dict) -> None:
         keep = [line for rel, line in latest.items()
                 if rel in by_rel and not _is_done(by_rel[rel], metas[by_rel[rel].folder], key)]
         if keep:
-            _atomic_write(path, lambda tmp: Path(tmp).write_text("".join(s + "\n" for s in keep)))
+            atomic_write(path, lambda tmp: Path(tmp).write_text("".join(s + "\n" for s in keep)))
         else:
             path.unlink()
 

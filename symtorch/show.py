@@ -274,10 +274,10 @@ def export_glb(path: str, verts, faces, p2ps, names: list[str], source: int | No
 
 
 def _write_atomic(path: str, data: bytes) -> None:
-    from .io import _atomic_write
+    from .io import _write_bytes
 
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    _atomic_write(path, data)
+    _write_bytes(path, data)
 
 
 def _group_table(res) -> np.ndarray | None:

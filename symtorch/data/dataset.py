@@ -6,7 +6,6 @@ import json
 import logging
 import os
 import re
-import tempfile
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -16,6 +15,8 @@ import numpy as np
 import torch
 from torch import Tensor
 from torch.utils.data import Dataset
+
+from ..io import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -103,19 +104,6 @@ def default_cache_dir(root: str | os.PathLike) -> Path:
     return base / f"{root.name}-{hashlib.sha1(str(root).encode()).hexdigest()[:8]}"
 
 
-def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    """Write through a temporary file in the same folder, then ``os.replace`` (atomic on POSIX)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-
-
 def _version() -> str:
     from .. import __version__
 
@@ -150,7 +138,7 @@ def write_meta(processed_dir: Path, meta: dict) -> None:
     def write(tmp: str) -> None:
         Path(tmp).write_text(json.dumps(meta, indent=1))
 
-    _atomic_write(Path(processed_dir) / "meta.json", write)
+    atomic_write(Path(processed_dir) / "meta.json", write)
 
 
 def process_file(raw: str | os.PathLike, out: str | os.PathLike,
@@ -168,7 +156,7 @@ def process_file(raw: str | os.PathLike, out: str | os.PathLike,
     sample = read_sample(raw, dtype, ground_truth)
     if pre_transform is not None:
         sample = pre_transform(sample)
-    _atomic_write(Path(out), lambda tmp: torch.save(sample, tmp))
+    atomic_write(Path(out), lambda tmp: torch.save(sample, tmp))
     return sample
 
 
