@@ -67,6 +67,9 @@ def klc_threshold(area: float) -> float:
     return math.sqrt(float(area) / (20.0 * math.pi))
 
 
+EPS_KLC = klc_threshold(1.0)  # the KLC10 radius on a unit-area shape (the detectors' unit of distance)
+
+
 def geodesic_errors(mesh, p2p, pairs) -> Tensor:
     """Geodesic error of a self-map at ground-truth pairs: ``d(p2p[p], g*(p))`` for each ``(p, g*(p))``.
 

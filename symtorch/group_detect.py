@@ -26,8 +26,8 @@ Pipeline, every step automatic (no hand-typed bands, orbit or group size):
    so that the candidates of one symmetry found from different tuples agree (the raw Procrustes
    solutions of noisy tuples scatter by more than the gap between elements).
 5. **Refinement, verification, closure**. Stage A, in the coarse basis and on 1000 sample vertices:
-   each mode's member nearest the mode is refined (``zoomout_samples``: ZoomOut kept
-   block-orthogonal, i.e. ``refine.zoomout_symmetry(block=True)``, or fixed-size spectral ICP with
+   each mode's member nearest the mode is refined (``refine.zoomout_symmetry(block=True)`` from
+   samples to samples: ZoomOut kept block-orthogonal, or fixed-size spectral ICP with
    ``refine='icp'``; both give the same groups, see BENCHMARKS.md), screened by distortion, and
    dropped if it duplicates an element; the set is closed under composition (``groups.closure``) and
    what closure adds is refined and screened the same way. Stage B upsamples the distinct elements to
@@ -73,19 +73,20 @@ from torch import Tensor
 
 from .cluster import mean_shift
 from .descriptors import descriptors, hks
+from .eval import EPS_KLC
 from .geodesics import GeodesicSolver
 from .group_maps import canonical_order, consistent_orientation, largest_subgroup
 from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
 from .procrustes import block_procrustes, block_project
-from .refine import _bands_upto, project_structure
+from .maps import nearest_neighbors
+from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
 from .spectrum import Spectrum, band_boundary, eigen_bands
 
 log = logging.getLogger(__name__)
 
-EPS_KLC = 1.0 / math.sqrt(20 * math.pi)  # sqrt(area / (20 pi)) on a unit-area shape
 _RADII = (0.5, 1.0, 2.0)  # geodesic disk radii of the constraints, in units of EPS_KLC
 
 
@@ -209,18 +210,10 @@ def icp_symmetry(C0: Tensor, evecs: Tensor, bands: list[range], n_iter: int = 10
     E = evecs[:, :k]
     C = C0
     for _ in range(n_iter):
-        p2p = _argmin_dist(E[S] @ C, E)
+        p2p = nearest_neighbors(E[S] @ C, E)
         # rows move as evecs[p2p] ≈ evecs @ C, i.e. C.T @ E[S].T ≈ E[p2p].T: block Procrustes, transposed
         C = block_procrustes(E[S].mT, E[p2p].mT, bands).mT
     return C
-
-
-def _argmin_dist(Q: Tensor, X: Tensor, chunk: int = 8192) -> Tensor:
-    """[N] index of the nearest row of ``X [M, k]`` for each row of ``Q [N, k]`` (brute force, batched:
-    faster than a KD-tree in the 20-60 dimensions of a spectral embedding)."""
-    X32 = X.float()  # float32: an argmin does not need float64, and it halves the time
-    sq = X32.square().sum(-1)
-    return torch.cat([(sq[None] - 2 * q.float() @ X32.mT).argmin(-1) for q in Q.split(chunk)])
 
 
 def batched_icp(C: Tensor, E_src: Tensor, E_tgt: Tensor, bands: list[range], n_iter: int = 2,
@@ -294,7 +287,7 @@ class _Geometry:
         E = self.evecs[:, :k]
         at = torch.arange(E.shape[0]) if at is None else at
         Es = E[self.samples]
-        img_s = self.samples[_argmin_dist(Es @ C, Es)]  # [S]
+        img_s = self.samples[nearest_neighbors(Es @ C, Es)]  # [S]
         cand = self.nbhd[img_s[self.nearest_sample[at]]]  # [N, c]
         Q = (E[at] @ C).float()
         d = (self.evecs32[:, :k][cand] - Q[:, None]).square().sum(-1)  # [N, c]
@@ -342,23 +335,24 @@ def continuous_test(geo: _Geometry, solver: GeodesicSolver, bands: list[range], 
     diag["tested_band"] = [b.start, b.stop]
     ks = b.stop
     passed = []
+    smp = geo.samples[:: max(1, len(geo.samples) // 12)][:12]
+    D_smp = None  # distances among smp: the same for every angle
     for a in angles:
         C0 = torch.eye(ks, dtype=geo.evecs.dtype)
         c, s = math.cos(a), math.sin(a)
         i, j = b.start, b.start + 1
         C0[i, i], C0[i, j], C0[j, i], C0[j, j] = c, -s, s, c
-        C = zoomout_samples(C0, geo.evecs[geo.samples], geo.mass[geo.samples], bands, k0)
+        C = _zoomout(geo, C0, bands, k0)
         D0, D1 = C0[b.start:b.stop, b.start:b.stop], C[b.start:b.stop, b.start:b.stop]
         stay = float((D1 - D0).norm() / math.sqrt(len(b)))
         if stay >= 0.3:  # snapped away from the rotation put in: no need to measure distortion
             diag[f"angle_{a}"] = {"stay": round(stay, 3), "pass": False}
             passed.append(False)
             break
-        smp = geo.samples[:: max(1, len(geo.samples) // 12)][:12]
         img = geo.p2p(C, smp)
-        D_a = solver.distances_from(smp.numpy())[:, smp.numpy()]
-        D_b = solver.distances_from(img.numpy())[:, img.numpy()]
-        dist = float((0.5 * (D_a + D_a.mT) - 0.5 * (D_b + D_b.mT)).abs().mean() / EPS_KLC)
+        if D_smp is None:
+            D_smp = solver.pairwise(smp)
+        dist = float((solver.pairwise(img) - D_smp).abs().mean() / EPS_KLC)
         ok = stay < 0.3 and dist < max_distortion
         diag[f"angle_{a}"] = {"stay": round(stay, 3), "distortion": round(dist, 3), "pass": ok}
         passed.append(ok)
@@ -367,32 +361,10 @@ def continuous_test(geo: _Geometry, solver: GeodesicSolver, bands: list[range], 
     return all(passed), diag
 
 
-def zoomout_samples(C0: Tensor, E: Tensor, w: Tensor, bands: list[range], k_final: int, step: int = 4,
-                    n_iter_end: int = 3) -> Tensor:
-    """``refine.zoomout_symmetry(block=True)`` on a vertex subset, with a brute-force batched nearest
-    neighbour (a KD-tree is slow in the 20-60 dimensions of the embedding).
-
-    Args:
-        C0: [k0, k0] at a band boundary; E: [S, K] eigenvector rows of the sample vertices (maps go
-            from samples to samples); w: [S] their mass; bands: covering ``0..k_final-1``.
-
-    Returns:
-        [k_final, k_final] block-orthogonal.
-    """
-    ends = [b.stop for b in bands if b.stop <= k_final]
-    schedule, k = [], C0.shape[-1]
-    while k < k_final:
-        k = next((e for e in ends if e >= k + step), k_final)
-        schedule.append(k)
-    schedule += [k_final] * n_iter_end
-    C, k = C0, C0.shape[-1]
-    for k_next in schedule:
-        p2p = _argmin_dist(E[:, :k] @ C, E[:, :k])
-        A, B = E[:, :k_next], E[p2p, :k_next]
-        AtW = (A * w[:, None]).mT
-        C = project_structure(torch.linalg.solve(AtW @ A, AtW @ B), _bands_upto(bands, k_next), False)
-        k = k_next
-    return C
+def _zoomout(geo, C0: Tensor, bands: list[range], k_final: int, step: int = 4, n_iter_end: int = 3) -> Tensor:
+    """Block-orthogonal ZoomOut (``refine.zoomout_symmetry``) from samples to samples."""
+    return zoomout_symmetry(C0, geo.evecs, geo.mass, bands, k_final, step=step, samples=geo.samples,
+                            targets=geo.samples, block=True, n_iter_end=n_iter_end)
 
 
 def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k: int = 20,
@@ -556,7 +528,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
         if refine == "icp":
             C0 = icp_symmetry(C0, evecs[geo.samples], bands0)
         else:
-            C0 = zoomout_samples(C0, geo.evecs[geo.samples], geo.mass[geo.samples], bands0, k0)
+            C0 = _zoomout(geo, C0, bands0, k0)
         at = torch.cat([geo.points, geo.score_samples])
         img = geo.p2p(C0, at)
         dst = geo.distortion_at(img[: len(geo.points)], img[len(geo.points):])
@@ -604,9 +576,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
         if e["dst"] == 0.0 and float((e["C0"] - eye0).abs().max()) == 0.0:
             Cf, p2p = torch.eye(kf, dtype=evecs.dtype), torch.arange(V)
         else:
-            Cf = e["C0"] if kf == k0 else zoomout_samples(e["C0"], geo.evecs[geo.samples],
-                                                          geo.mass[geo.samples], bands, kf, step=6,
-                                                          n_iter_end=2)
+            Cf = e["C0"] if kf == k0 else _zoomout(geo, e["C0"], bands, kf, step=6, n_iter_end=2)
             p2p = geo.p2p(Cf)
         final.append((Cf, p2p, exact_distortion(p2p) if len(final) else 0.0))
     # an element that upsampling made worse than the threshold falls back to its verified coarse map

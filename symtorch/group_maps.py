@@ -11,15 +11,15 @@ element order (:func:`canonical_order`) rest on the maps. Table convention of :m
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 import torch
 from torch import Tensor
 
+from .eval import EPS_KLC
+
 log = logging.getLogger(__name__)
 
-EPS_KLC = 1.0 / math.sqrt(20 * math.pi)  # sqrt(area / (20 pi)) on a unit-area shape
 
 __all__ = ["map_table", "largest_subgroup", "consistent_orientation", "canonical_order"]
 

@@ -31,6 +31,7 @@ import torch
 from torch import Tensor
 
 from .descriptors import descriptors, hks
+from .eval import EPS_KLC
 from .geodesics import GeodesicSolver
 from .maps import nearest_neighbors
 from .procrustes import block_procrustes
@@ -39,7 +40,6 @@ from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
 from .spectrum import Spectrum, band_boundary, eigen_bands
 
-EPS_KLC = 1.0 / math.sqrt(20 * math.pi)  # sqrt(area / (20 pi)) on a unit-area shape
 
 __all__ = ["heat_extrema", "seed_pairs", "extend_involution", "involution_candidates",
            "detect_reflection", "isometry_score", "EPS_KLC"]
@@ -186,8 +186,8 @@ def involution_candidates(desc: np.ndarray, dist: np.ndarray, n_partners: int = 
     return [out[i] for i in order], np.asarray(scores)[order], len(seeds)
 
 
-def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor,
-                   return_worst: bool = False) -> tuple[float, float] | tuple[float, float, float]:
+def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor, return_worst: bool = False,
+                   source_dist: Tensor | None = None) -> tuple[float, float] | tuple[float, float, float]:
     """Confidence that ``p2p`` is an isometry, from geodesic distortion among sample points.
 
     distortion = mean over sample pairs of ``|d(g(s_i), g(s_j)) - d(s_i, s_j)|`` on the unit-area
@@ -198,14 +198,13 @@ def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor,
         (score in [0, 1], distortion), and with ``return_worst`` the largest per-sample distortion
         (mean over the other samples), which exposes a map that is good on most of the shape but
         wrong on one part of it.
+
+    ``source_dist``: ``solver.pairwise(samples)``, when several maps are scored on one sample set
+    (it does not depend on the map; each call then solves only from the images).
     """
-    s = samples.cpu().numpy()
-    gs = p2p[samples].cpu().numpy()
-    D0 = np.asarray(solver.distances_from(s))[:, s]
-    D1 = np.asarray(solver.distances_from(gs))[:, gs]
-    D0 = 0.5 * (D0 + D0.T)
-    D1 = 0.5 * (D1 + D1.T)
-    err = np.abs(D1 - D0) / EPS_KLC
+    D0 = solver.pairwise(samples) if source_dist is None else source_dist
+    D1 = solver.pairwise(p2p[samples])
+    err = np.asarray((D1 - D0).abs()) / EPS_KLC
     distortion = float(err.mean())
     if return_worst:
         return math.exp(-distortion ** 2), distortion, float(err.mean(1).max())
@@ -351,6 +350,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     vote_samples = samples[: min(500, len(samples))]
     best = None
     trials = []
+    select_dist = None  # distances among the selection samples: the same for every candidate
     for c, kc in itertools.product(range(len(perms)), starts):
         Cs = zoomout_symmetry(C0[c, :kc, :kc], evecs, mass, bands, ks, samples=sel, involution=True,
                               block=block_refine, targets=samples)
@@ -364,7 +364,10 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         # but breaks the distances where it joins the body
         distortion = math.inf
         if vote < -select_vote:
-            distortion = isometry_score(solver, p2p_s, vote_samples[:n_select_verify])[1]
+            if select_dist is None:
+                select_dist = solver.pairwise(vote_samples[:n_select_verify])
+            distortion = isometry_score(solver, p2p_s, vote_samples[:n_select_verify],
+                                        source_dist=select_dist)[1]
         trials.append((round(vote, 3), round(distortion, 3)))
         key = (0, distortion) if math.isfinite(distortion) else (1, vote)
         if best is None or key < best[0]:
