@@ -50,15 +50,12 @@ def pick_symmetry(result):
     return None
 
 
-MODE = "auto"
-
-
-def run_symtorch(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
+def run_symtorch(verts: np.ndarray, faces: np.ndarray, mode: str = "auto") -> tuple[np.ndarray, str]:
     import symtorch
 
     if not hasattr(symtorch, "detect_symmetries"):
         raise SystemExit("symtorch.detect_symmetries is not available yet; try --method pyfm")
-    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=MODE)
+    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode)
     sym = pick_symmetry(result)
     if sym is None:
         return np.arange(len(verts)), "none"
@@ -71,7 +68,8 @@ def run_pyfm(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
     return pyfm_reflection(verts, faces), "reflection"
 
 
-def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int) -> dict | None:
+def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,
+                  mode: str = "auto") -> dict | None:
     try:
         gt = load_ground_truth(dataset, name)
     except FileNotFoundError:
@@ -79,7 +77,7 @@ def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: i
         return None
     verts, faces = load_mesh(path)
     t0, c0 = time.perf_counter(), time.process_time()
-    p2p, kind = (run_symtorch if method == "symtorch" else run_pyfm)(verts, faces)
+    p2p, kind = run_symtorch(verts, faces, mode) if method == "symtorch" else run_pyfm(verts, faces)
     t_method, c_method = time.perf_counter() - t0, time.process_time() - c0
 
     t0 = time.perf_counter()
@@ -110,8 +108,6 @@ def main(argv=None) -> int:
                         help="dense ground truth: score this many evenly spaced pairs (0: all)")
     parser.add_argument("--out", type=Path, default=None, help="write per-mesh rows as CSV")
     args = parser.parse_args(argv)
-    global MODE
-    MODE = args.mode
     logging.basicConfig(level=logging.WARNING)
     warnings.filterwarnings("ignore", category=DeprecationWarning)
 
@@ -126,7 +122,7 @@ def main(argv=None) -> int:
     print(header)
     rows = []
     for name, path in meshes:
-        row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs)
+        row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs, args.mode)
         if row is None:
             continue
         rows.append(row)

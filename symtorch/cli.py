@@ -153,15 +153,20 @@ def _cmd_info(args) -> int:
     return 0
 
 
+def add_shape_arguments(parser: argparse.ArgumentParser) -> None:
+    """The input of every sub-command that reads one shape: a mesh file or ``--demo [NAME]``."""
+    parser.add_argument("mesh", nargs="?", help="mesh file (OFF, OBJ, PLY, ...)")
+    parser.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME",
+                        help="use a built-in shape instead of a file (default mirror_blob)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="symtorch", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging on stderr")
     sub = p.add_subparsers(dest="command", required=True)
 
     d = sub.add_parser("detect", help="find the intrinsic symmetries of a mesh; JSON result")
-    d.add_argument("mesh", nargs="?", help="mesh file (OFF, OBJ, PLY, ...)")
-    d.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME",
-                   help="use a built-in shape instead of a file (default mirror_blob)")
+    add_shape_arguments(d)
     d.add_argument("--out", help="write the JSON here instead of stdout")
     d.add_argument("--matrices", help="write the C matrices, maps and basis size to this .npz")
     d.add_argument("--k", type=int, default=None, help="coarse basis size (snapped to a band end)")
@@ -170,8 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_detect)
 
     i = sub.add_parser("info", help="mesh statistics, first eigenvalues and bands")
-    i.add_argument("mesh", nargs="?")
-    i.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME")
+    add_shape_arguments(i)
     i.add_argument("--k", type=int, default=20, help="eigenvalues to compute (0: none)")
     i.add_argument("--json", action="store_true", help="print JSON instead of a table")
     i.set_defaults(func=_cmd_info)

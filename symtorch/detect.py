@@ -24,7 +24,7 @@ class _Timer:
         self.t = now
 
 
-def _shape_inputs(shape, faces, k, spectrum):
+def _shape_inputs(shape, faces):
     if isinstance(shape, Spectrum):
         raise ValueError("pass verts and faces with spectrum=...; detection needs the geometry")
     if hasattr(shape, "verts"):  # symtorch.io.Mesh
@@ -37,8 +37,8 @@ def _shape_inputs(shape, faces, k, spectrum):
 
 def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
                       spectrum: Spectrum | None = None, mode: str = "auto",
-                      n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12, nms_radius: float = 2.0, min_score: float = 0.5,
-                      n_refine: int = 8,
+                      n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12,
+                      nms_radius: float = 2.0, min_score: float = 0.5, n_refine: int = 8,
                       generator: torch.Generator | None = None) -> SymmetryResult:
     """Find the global intrinsic symmetries of a triangle mesh.
 
@@ -62,6 +62,9 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
         n_samples: vertices the refinement evaluates the map on.
         n_extrema: most heat-kernel extrema used as candidate points.
         min_score: a candidate whose confidence is below this is not reported.
+        n_refine: candidate involutions the reflection path upsamples and compares.
+        generator: accepted so that callers can pass one; detection is deterministic and draws
+            nothing from it.
 
     Returns:
         SymmetryResult, identity first, then best first.
@@ -70,30 +73,24 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
         ValueError: for a point cloud, or bad mesh input.
     """
     timer = _Timer()
-    verts, faces = _shape_inputs(shape, faces, k, spectrum)
+    verts, faces = _shape_inputs(shape, faces)
     if mode not in ("auto", "reflection", "group"):
         raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
     if spectrum is None:
         spectrum = laplacian_spectrum(verts, faces, k=int(k_refine * 1.3) + 8)
     timer.lap("spectrum")
     from .group_detect import detect_group, has_multiplicities, with_group
+    from .reflect import detect_reflection
     grouped = None
     if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
         grouped = detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
                                timer=timer)
         if mode == "group" or grouped.continuous or grouped.group["order"] > 2:
             return grouped
-    result = with_group(_detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
-                              n_extrema=n_extrema, nms_radius=nms_radius, block_refine=block_refine, min_score=min_score,
-                              n_refine=n_refine, timer=timer), verts, faces)
+    reflected = detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
+                                  n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
+                                  block_refine=block_refine, min_score=min_score, timer=timer)
+    result = with_group(reflected, verts, faces)
     if grouped is not None and grouped.group["order"] > result.group["order"]:
         return grouped
     return result
-
-
-def _detect_reflection(verts, faces, spectrum, *, k, k_refine, n_samples, n_extrema, nms_radius, block_refine,
-                       min_score, n_refine, timer):
-    from .reflect import detect_reflection
-    return detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
-                             n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
-                             block_refine=block_refine, min_score=min_score, timer=timer)

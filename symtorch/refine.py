@@ -55,7 +55,7 @@ def _bands_upto(bands: list[range], K: int) -> list[range]:
 
 def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range], k_final: int,
                      *, step: int = 4, samples: Tensor | None = None, involution: bool = False,
-                     block: bool = True, n_iter_end: int = 2, project: bool = True,
+                     block: bool = True, n_iter_end: int = 2,
                      targets: Tensor | None = None) -> Tensor:
     """Grow a symmetry matrix from ``C0 [k0, k0]`` to ``[k_final, k_final]``, band by band.
 
@@ -73,7 +73,6 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         samples: [S] vertex ids to evaluate the map on (default all vertices).
         involution: enforce ``C = C.T`` (reflections).
         block: enforce the band structure (else the full orthogonal matrix, as ZoomOut).
-        project: project onto the structure after each step (else plain least squares).
         targets: [T] vertex ids the sample images are searched among (default all vertices);
             a sample set makes each step's nearest-neighbour search V/T times cheaper.
 
@@ -102,6 +101,6 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B
         AtW = (A * w[:, None]).mT
         Cn = torch.linalg.solve(AtW @ A, AtW @ B)
-        C = project_structure(Cn, _bands_upto(bands, k_next) if block else None, involution) if project else Cn
+        C = project_structure(Cn, _bands_upto(bands, k_next) if block else None, involution)
         k = k_next
     return C

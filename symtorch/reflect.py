@@ -342,7 +342,6 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         B[c, :, n_max * len(radii):] = A_desc
     C0 = block_procrustes(A, B, bands0)  # [P, k0, k0]
     lap("procrustes")
-    info["_C0"], info["_perms"] = C0, perms
     samples = farthest_point_sampling(verts_unit, min(n_samples, V))
     sel = samples[: max(len(samples) // 2, 1)]
     vt, ft = verts_unit, torch.as_tensor(faces)

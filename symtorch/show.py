@@ -327,13 +327,13 @@ def _cmd_show(args) -> int:
 
 def register_cli(subparsers) -> None:
     """Add ``symtorch show MESH`` to the ``symtorch`` command line."""
+    from .cli import add_shape_arguments
+
     p = subparsers.add_parser(
         "show", help="picture of the detected symmetries and the group table (PNG, GLB)",
         description="Detect the symmetries, then draw a non-symmetric function f and, for each "
                     "symmetry g, f transferred through it (f∘g), next to the group table.")
-    p.add_argument("mesh", nargs="?", help="mesh file (OFF, OBJ, PLY, ...)")
-    p.add_argument("--demo", nargs="?", const="mirror_blob", default=None, metavar="NAME",
-                   help="use a built-in shape instead of a file (default mirror_blob)")
+    add_shape_arguments(p)
     p.add_argument("--out", help="PNG to write (default <mesh name>_symmetries.png unless --glb)")
     p.add_argument("--glb", help="also write the coloured meshes to this .glb (any 3D viewer)")
     p.add_argument("--k", type=int, default=None, help="coarse basis size of the detector")
