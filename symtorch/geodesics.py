@@ -76,6 +76,28 @@ def edge_graph(verts, faces) -> sp.csr_matrix:
     return G.tocsr()
 
 
+def voronoi_cells(verts, faces, sites) -> Tensor:
+    """Graph-geodesic Voronoi cells: for each vertex, the position in ``sites`` of its nearest site.
+
+    One multi-source Dijkstra along the mesh edges (intrinsic: parts that touch in space but not
+    on the surface stay apart).
+
+    Args:
+        verts: [V, 3]; faces: [F, 3].
+        sites: [S] vertex ids.
+
+    Returns:
+        [V] long in ``0..S-1`` (-1 for a vertex no site reaches: another connected component).
+    """
+    n = len(verts)
+    s = _check_sources(sites, n, "sites")
+    _, _, src = dijkstra(edge_graph(verts, faces), directed=False, indices=s, min_only=True,
+                         return_predecessors=True)
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[s] = np.arange(s.size)  # a repeated site keeps its last position
+    return torch.as_tensor(np.where(src >= 0, pos[np.maximum(src, 0)], -1))
+
+
 def graph_distances(verts, faces, sources) -> Tensor:
     """Shortest-path distances along mesh edges (Dijkstra), the fallback to the heat method.
 

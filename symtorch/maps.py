@@ -68,6 +68,31 @@ def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Ten
     return out
 
 
+def nearest_neighbors_among(queries: Tensor, points: Tensor, candidates: Tensor, groups: Tensor,
+                            chunk: int = 2048) -> Tensor:
+    """Index of the nearest row of ``points`` for each query, searched only among its candidates.
+
+    Args:
+        queries: [N, D].
+        points: [M, D].
+        candidates: [G, m] long, candidate point ids of each group.
+        groups: [N] long, the group (row of ``candidates``) each query searches.
+
+    Returns:
+        [N] long point ids. N * m distances instead of N * M: a local search where an earlier map
+        says roughly where each query's image is.
+    """
+    if groups.shape[0] != queries.shape[0]:
+        raise ValueError(f"groups has {groups.shape[0]} entries for {queries.shape[0]} queries")
+    out = torch.empty(queries.shape[0], dtype=torch.long, device=queries.device)
+    sq = points.square().sum(-1)  # [M]
+    for s in range(0, queries.shape[0], chunk):
+        c = candidates[groups[s:s + chunk]]  # [n, m]
+        d = sq[c] - 2 * torch.einsum("nd,nmd->nm", queries[s:s + chunk], points[c])
+        out[s:s + chunk] = c.gather(1, d.argmin(1, keepdim=True))[:, 0]
+    return out
+
+
 def fmap_to_p2p(C: Tensor, evecs: Tensor, evecs_src: Tensor | None = None) -> Tensor:
     """Vertex map of a functional map: ``p2p[i] = argmin_j ||evecs[j] - evecs_src[i] @ C||``.
 

@@ -28,12 +28,13 @@ import math
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 from torch import Tensor
 
 from .descriptors import descriptors, hks
 from .eval import EPS_KLC
-from .geodesics import GeodesicSolver
-from .maps import nearest_neighbors
+from .geodesics import GeodesicSolver, voronoi_cells
+from .maps import nearest_neighbors, nearest_neighbors_among
 from .procrustes import block_procrustes
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
@@ -272,7 +273,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
                       max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, early_distortion: float = 0.25,
                       select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
-                      timer=None) -> SymmetryResult:
+                      n_local: int = 64, timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
     Args:
@@ -291,6 +292,9 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         early_vote, early_distortion: stop comparing candidates once one votes below
             ``-early_vote`` with a distortion below ``early_distortion`` (KLC units).
         n_verify: samples of the final geodesic verification (2 heat solves each).
+        n_local: the final vertex map searches each vertex's image among this many vertices near
+            the image of its sample (``_dense_map``; 0: among all). On SCAPE (71) and FAUST (10)
+            the same rates and errors as the full search, p2p stage 0.38 -> 0.14 s at 12.5K.
 
     Returns:
         SymmetryResult (``group`` left empty for the caller).
@@ -381,7 +385,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     Cf = zoomout_symmetry(Cf, evecs, mass, bands, kf, samples=samples, involution=True,
                           block=block_refine, n_iter_end=1)  # last step against every vertex
     lap("refine")
-    p2p = nearest_neighbors(evecs[:, :kf] @ Cf, evecs[:, :kf])
+    p2p = _dense_map(evecs[:, :kf] @ Cf, evecs[:, :kf], vt, ft, samples, n_local)
     lap("p2p")
     score, distortion, worst = isometry_score(solver, p2p, samples[:n_verify], return_worst=True)
     info["worst_distortion"] = worst
@@ -391,6 +395,29 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     if score >= min_score and vote < -max_vote and worst < max_worst:
         symmetries.append(Symmetry(Cf, p2p, "reflection", 2, score))
     return SymmetryResult(symmetries, spectrum, bands, timings=_timings(timer), info=info)
+
+
+def _dense_map(Q: Tensor, E: Tensor, verts: Tensor, faces: Tensor, samples: Tensor, n_local: int) -> Tensor:
+    """Vertex map ``NN(Q, E)`` for every vertex, searched near where the samples' images are.
+
+    The samples' images are searched among all vertices; every other vertex then searches only
+    the ``n_local`` vertices nearest (in space) to the image of its sample (its graph-geodesic
+    Voronoi cell): V * n_local distances instead of V * V. ``n_local = 0`` searches everywhere.
+
+    Args:
+        Q: [V, K] mapped embedding ``evecs @ C``; E: [V, K] target embedding ``evecs``.
+        verts: [V, 3]; faces: [F, 3]; samples: [S] vertex ids.
+    """
+    V = Q.shape[0]
+    if n_local <= 0 or n_local >= V:
+        return nearest_neighbors(Q, E)
+    cells = voronoi_cells(verts, faces, samples)
+    if bool((cells < 0).any()):  # a component without samples: search everywhere
+        return nearest_neighbors(Q, E)
+    Q, E = Q.float(), E.float()  # distances to compare, not to keep: float32 is ample
+    img = nearest_neighbors(Q[samples], E)
+    _, near = cKDTree(verts.detach().cpu().numpy()).query(verts[img].detach().cpu().numpy(), k=n_local)
+    return nearest_neighbors_among(Q, E, torch.as_tensor(near, device=Q.device), cells.to(Q.device))
 
 
 def _timings(timer) -> dict:

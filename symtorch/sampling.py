@@ -74,15 +74,32 @@ def farthest_point_sampling(points: Tensor, n: int, start: int = 0) -> Tensor:
     V = points.shape[0]
     n = min(n, V)
     # the loop is sequential by nature: numpy on the host is ~5x faster than small torch ops
-    x = np.ascontiguousarray(points.detach().cpu().numpy(), dtype=np.float64)
+    x = points.detach().cpu().numpy().astype(np.float64)
     out = np.empty(n, dtype=np.int64)
     dist = np.full(V, np.inf)
     d = np.empty(V)
     cur = start
-    for i in range(n):
-        out[i] = cur
-        diff = x - x[cur]
-        np.einsum("ij,ij->i", diff, diff, out=d)
-        np.minimum(dist, d, out=dist)
-        cur = int(dist.argmax())
+    if x.shape[1] <= 8:
+        # few coordinates: one contiguous row per coordinate and in-place ufuncs, no [V, D]
+        # temporary per step (3D, 12.5K points, 2000 samples: 0.03 s instead of 0.19 s)
+        xt = np.ascontiguousarray(x.T)
+        tmp = np.empty(V)
+        for i in range(n):
+            out[i] = cur
+            np.subtract(xt[0], xt[0, cur], out=d)
+            np.multiply(d, d, out=d)
+            for row in xt[1:]:
+                np.subtract(row, row[cur], out=tmp)
+                np.multiply(tmp, tmp, out=tmp)
+                np.add(d, tmp, out=d)
+            np.minimum(dist, d, out=dist)
+            cur = int(dist.argmax())
+    else:
+        x = np.ascontiguousarray(x)
+        for i in range(n):
+            out[i] = cur
+            diff = x - x[cur]
+            np.einsum("ij,ij->i", diff, diff, out=d)
+            np.minimum(dist, d, out=dist)
+            cur = int(dist.argmax())
     return torch.as_tensor(out, device=points.device)

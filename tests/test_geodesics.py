@@ -4,7 +4,7 @@ import torch
 import trimesh
 
 from symtorch.geodesics import (GeodesicSolver, disk_indicators, geodesic_distances,
-                                graph_distances)
+                                graph_distances, voronoi_cells)
 
 RADIUS = 2.0
 
@@ -124,3 +124,23 @@ def test_errors(sphere, solver):
         disk_indicators(solver, 1.0)
     with pytest.raises(ValueError, match="method must be"):
         geodesic_distances(verts, faces, [0], method="exact")
+
+
+def test_voronoi_cells_follow_graph_distance(sphere):
+    verts, faces, _ = sphere
+    sites = np.array([0, 17, 100, 2000])
+    cells = voronoi_cells(verts, faces, sites)
+    assert cells.shape == (len(verts),) and cells.dtype == torch.long
+    assert torch.equal(cells[sites], torch.arange(4))
+    D = graph_distances(verts, faces, sites).numpy()  # [4, V]
+    # each vertex lies in the cell of a graph-nearest site (ties may go either way)
+    own = D[cells.numpy(), np.arange(len(verts))]
+    assert np.allclose(own, D.min(axis=0))
+
+
+def test_voronoi_cells_mark_unreached_components(sphere):
+    verts, faces, _ = sphere
+    two_v = np.concatenate([verts, verts + 10.0])
+    two_f = np.concatenate([faces, faces + len(verts)])
+    cells = voronoi_cells(two_v, two_f, [0, 5])
+    assert bool((cells[: len(verts)] >= 0).all()) and bool((cells[len(verts):] == -1).all())

@@ -10,7 +10,7 @@ import torch
 
 from shapes import mirror_mesh
 from symtorch.groups import compose_fmap, compose_p2p, inverse_fmap
-from symtorch.maps import fmap_to_p2p, nearest_neighbors, p2p_to_fmap
+from symtorch.maps import fmap_to_p2p, nearest_neighbors, nearest_neighbors_among, p2p_to_fmap
 from symtorch.shapes import polar_prism, polar_prism_symmetries, symmetry_maps
 from symtorch.spectrum import band_boundary, eigen_bands, laplacian_spectrum
 
@@ -127,3 +127,23 @@ def test_value_errors(mirror):
         p2p_to_fmap(perm[:-1], E, s.mass)
     with pytest.raises(ValueError, match=rf"C must be \[{K}, {K}\], got \[{K}, {K - 1}\]"):
         fmap_to_p2p(torch.zeros(K, K - 1, dtype=torch.float64), E)
+
+
+def test_nearest_neighbors_among_is_the_best_candidate():
+    g = torch.Generator().manual_seed(0)
+    points = torch.randn(500, 8, generator=g, dtype=torch.float64)
+    queries = torch.randn(300, 8, generator=g, dtype=torch.float64)
+    # every candidate set holds all points: the same answer as the full search
+    full = torch.arange(500).expand(4, 500)
+    groups = torch.randint(0, 4, (300,), generator=g)
+    assert torch.equal(nearest_neighbors_among(queries, points, full, groups, chunk=64),
+                       nearest_neighbors(queries, points))
+    # restricted sets: the answer is in the query's set and no other member of it is nearer
+    cand = torch.stack([torch.randperm(500, generator=g)[:20] for _ in range(4)])
+    got = nearest_neighbors_among(queries, points, cand, groups)
+    for q in range(300):
+        c = cand[groups[q]]
+        assert int(got[q]) in c.tolist()
+        assert int(got[q]) == int(c[(points[c] - queries[q]).norm(dim=1).argmin()])
+    with pytest.raises(ValueError, match="groups has 299 entries for 300 queries"):
+        nearest_neighbors_among(queries, points, cand, groups[:299])

@@ -8,6 +8,7 @@ import torch
 from symtorch import detect_symmetries, laplacian_spectrum
 from symtorch.cli import main as cli_main
 from symtorch.geodesics import GeodesicSolver
+from symtorch.maps import p2p_to_fmap
 from symtorch.reflect import (EPS_KLC, extend_involution, involution_candidates, orientation_vote,
                               seed_pairs, vertex_normals)
 from symtorch.sampling import farthest_point_sampling
@@ -140,3 +141,18 @@ def test_several_coarse_starts(blob):
     res = detect_symmetries(v, f, mode="reflection", k=(6, 12))
     assert torch.equal(res.reflection.p2p, mirror)
     assert res.info["k0"] == sorted(set(res.info["k0"])) and len(res.info["k0"]) >= 1
+
+
+def test_local_dense_map_agrees_with_the_full_search(blob):
+    from symtorch.reflect import _dense_map
+
+    v, f, mirror = blob
+    s = laplacian_spectrum(v, f, k=40)
+    vu = v * s.scale
+    C = p2p_to_fmap(mirror, s.evecs[:, :30], s.mass)  # the true mirror's matrix, truncated
+    Q, E = s.evecs[:, :30] @ C, s.evecs[:, :30]
+    samples = farthest_point_sampling(vu, 200)
+    full = _dense_map(Q, E, vu, f, samples, n_local=0)
+    local = _dense_map(Q, E, vu, f, samples, n_local=32)
+    assert float((local == full).double().mean()) > 0.97
+    assert float((local == mirror).double().mean()) >= float((full == mirror).double().mean()) - 0.01
