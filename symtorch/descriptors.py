@@ -92,3 +92,38 @@ def descriptors(evals: Tensor, evecs: Tensor, n_hks: int = 16, n_wks: int = 16) 
     w = wks(evals, evecs, energies, sigma) if n_wks else evecs[..., :0]
     d = torch.cat([h, w], dim=-1)
     return d / d.mean(dim=-2, keepdim=True).clamp_min(1e-300)
+
+
+def gradient_cross(verts: Tensor, faces: Tensor, fields: Tensor, pairs: Tensor) -> Tensor:
+    """Signed area of the gradients of pairs of scalar fields: ``n . (grad u_a x grad u_b)`` per vertex.
+
+    An orientation-preserving isometry that maps field ``a`` to ``a'`` and ``b`` to ``b'`` keeps this
+    value; an orientation-reversing one (a reflection) flips its sign. With distance fields of
+    paired points it tells the front of a limb from its back, which the distances alone cannot.
+
+    Args:
+        verts: [V, 3]; faces: [F, 3] long, consistently oriented.
+        fields: [n, V] piecewise-linear scalar fields.
+        pairs: [P, 2] long indices into ``fields``.
+
+    Returns:
+        [V, P], per face values averaged to the vertices with face-area weights.
+    """
+    faces = torch.as_tensor(faces, device=verts.device)
+    vf = verts[faces]  # [F, 3, 3]
+    N = torch.cross(vf[:, 1] - vf[:, 0], vf[:, 2] - vf[:, 0], dim=-1)
+    dbl = N.norm(dim=-1, keepdim=True).clamp_min(torch.finfo(verts.dtype).tiny)  # twice the area
+    n = N / dbl
+    # gradient of a linear function on a triangle: sum_i u_i (n x e_i) / (2 area), e_i opposite i
+    e = torch.stack([vf[:, 2] - vf[:, 1], vf[:, 0] - vf[:, 2], vf[:, 1] - vf[:, 0]], 1)  # [F, 3, 3]
+    ne = torch.cross(n[:, None, :].expand_as(e), e, dim=-1) / dbl[:, None]
+    g = torch.einsum("fin,fid->fnd", fields.mT[faces], ne)  # [F, n, 3]
+    pairs = torch.as_tensor(pairs, device=verts.device).reshape(-1, 2)
+    s = torch.einsum("fd,fpd->fp", n, torch.cross(g[:, pairs[:, 0]], g[:, pairs[:, 1]], dim=-1))
+    w = dbl[:, 0]
+    out = torch.zeros(verts.shape[0], pairs.shape[0], dtype=verts.dtype, device=verts.device)
+    den = torch.zeros(verts.shape[0], dtype=verts.dtype, device=verts.device)
+    for i in range(3):
+        out.index_add_(0, faces[:, i], s * w[:, None])
+        den.index_add_(0, faces[:, i], w)
+    return out / den.clamp_min(torch.finfo(verts.dtype).tiny)[:, None]

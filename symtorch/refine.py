@@ -56,7 +56,7 @@ def _bands_upto(bands: list[range], K: int) -> list[range]:
 def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range], k_final: int,
                      *, step: int = 4, samples: Tensor | None = None, involution: bool = False,
                      block: bool = True, n_iter_end: int = 2,
-                     targets: Tensor | None = None) -> Tensor:
+                     targets: Tensor | None = None, guide: tuple[Tensor, Tensor] | None = None) -> Tensor:
     """Grow a symmetry matrix from ``C0 [k0, k0]`` to ``[k_final, k_final]``, band by band.
 
     Each step: ``p2p = NN(evecs_k[S] @ C, evecs_k)`` for the sample vertices ``S``, then the
@@ -75,6 +75,8 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         block: enforce the band structure (else the full orthogonal matrix, as ZoomOut).
         targets: [T] vertex ids the sample images are searched among (default all vertices);
             a sample set makes each step's nearest-neighbour search V/T times cheaper.
+        guide: optional ([V, G] source features, [V, G] target features) appended to the spectral
+            coordinates in each nearest-neighbour search (weighted by the caller).
 
     Returns:
         [k_final, k_final] matrix.
@@ -91,11 +93,12 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         k = nxt
     schedule += [k_final] * n_iter_end
     k = C0.shape[-1]
+    T = torch.arange(evecs.shape[0], device=evecs.device) if targets is None else targets
     for k_next in schedule:
-        if targets is None:
-            p2p = nearest_neighbors(evecs[S, :k] @ C, evecs[:, :k])
-        else:
-            p2p = targets[nearest_neighbors(evecs[S, :k] @ C, evecs[targets, :k])]
+        Q, P = evecs[S, :k] @ C, evecs[T, :k]
+        if guide is not None:
+            Q, P = torch.cat([Q, guide[0][S]], 1), torch.cat([P, guide[1][T]], 1)
+        p2p = T[nearest_neighbors(Q, P)]
         A = evecs[S, :k_next]
         B = evecs[p2p, :k_next]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B

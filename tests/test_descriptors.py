@@ -112,3 +112,24 @@ def test_value_errors(mirror):
         default_times(s.evals[:2])
     with pytest.raises(ValueError, match="at least two non-zero eigenvalues for an energy grid"):
         default_energies(torch.zeros(5, dtype=torch.float64))
+
+
+def test_gradient_cross_flips_sign_under_a_reflection():
+    from symtorch.descriptors import gradient_cross
+    from symtorch.geodesics import GeodesicSolver
+
+    verts, faces, mirror = mirror_mesh(3)
+    solver = GeodesicSolver(verts, faces)
+    a, b = 5, 200
+    fields = solver.distances_from([a, b])  # [2, V]
+    images = solver.distances_from([int(mirror[a]), int(mirror[b])])
+    pairs = torch.tensor([[0, 1]])
+    x = gradient_cross(verts, faces, fields, pairs)[:, 0]  # [V]
+    y = gradient_cross(verts, faces, images, pairs)[:, 0]
+    assert x.shape == (verts.shape[0],)
+    # the reflection maps a -> a', b -> b' and reverses orientation: x(v) = -y(mirror v)
+    far = (fields.min(0).values > 0.3) & (images.min(0).values > 0.3)  # away from the sources' kinks
+    assert float((x + y[mirror])[far].abs().max()) < 1e-6 * float(x.abs().max()) + 1e-9
+    assert float(x[far].abs().mean()) > 0.1  # not trivially zero
+    # swapping the pair flips the sign too
+    assert torch.allclose(gradient_cross(verts, faces, fields, torch.tensor([[1, 0]]))[:, 0], -x)

@@ -156,3 +156,20 @@ def test_local_dense_map_agrees_with_the_full_search(blob):
     local = _dense_map(Q, E, vu, f, samples, n_local=32)
     assert float((local == full).double().mean()) > 0.97
     assert float((local == mirror).double().mean()) >= float((full == mirror).double().mean()) - 0.01
+
+
+def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
+    from symtorch.reflect import detect_reflection
+
+    v, f, mirror = blob
+    s = laplacian_spectrum(v, f, k=80)
+    first = detect_reflection(v, f, s)
+    assert "guided" not in first.info and torch.equal(first.reflection.p2p, mirror)
+    # an unreachable confidence bar: the first selection fails verification, the guided one runs
+    # (and fails the same bar), and the result is the identity alone
+    strict = detect_reflection(v, f, s, min_score=1.01)
+    assert [x.kind for x in strict.symmetries] == ["identity"]
+    assert "guided" in strict.info and strict.info["guided_trials"]
+    assert strict.info["guided"]["orientation"] < -0.5  # the guided map is a reflection all the same
+    off = detect_reflection(v, f, s, min_score=1.01, w_guide=0)
+    assert "guided" not in off.info
