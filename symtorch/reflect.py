@@ -18,8 +18,14 @@ Pipeline (stage names as in ``SymmetryResult.timings``):
    the involution structure (``refine.zoomout_symmetry``); the one whose vertex map reverses the
    orientation most consistently (``orientation_vote``: a reflection reverses it everywhere, an
    identity-like collapse nowhere, a partial swap in places) wins and is grown to the final basis.
-4. **p2p**, **verify** — the dense vertex map and a geodesic-distortion confidence; below
-   ``min_score`` the reflection is not reported (no forced symmetry on an asymmetric shape).
+4. **p2p**, **verify** — the dense vertex map (the samples' images searched among all vertices,
+   every other vertex near the image of its sample: ``_dense_map``) and a geodesic-distortion
+   confidence; below ``min_score`` the reflection is not reported (no forced symmetry on an
+   asymmetric shape).
+5. **select_guided** — only where nothing verified: the selection again, each candidate's
+   upsampling guided by features whose sign a reflection flips (``_orientation_guide``), then
+   refine/p2p/verify once more. On posed humans the right candidate's plain upsampling can slide to
+   the orientation-preserving near-isometry (left-right and front-back swapped at once).
 """
 from __future__ import annotations
 
