@@ -79,7 +79,7 @@ from .group_maps import canonical_order, consistent_orientation, largest_subgrou
 from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
 from .procrustes import block_procrustes, block_project
-from .maps import nearest_neighbors
+from .maps import nearest_neighbors, nearest_neighbors_among
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
@@ -288,10 +288,8 @@ class _Geometry:
         at = torch.arange(E.shape[0]) if at is None else at
         Es = E[self.samples]
         img_s = self.samples[nearest_neighbors(Es @ C, Es)]  # [S]
-        cand = self.nbhd[img_s[self.nearest_sample[at]]]  # [N, c]
-        Q = (E[at] @ C).float()
-        d = (self.evecs32[:, :k][cand] - Q[:, None]).square().sum(-1)  # [N, c]
-        return cand.gather(1, d.argmin(1, keepdim=True))[:, 0]
+        return nearest_neighbors_among((E[at] @ C).float(), self.evecs32[:, :k], self.nbhd[img_s],
+                                       self.nearest_sample[at])
 
     def distortion_at(self, gp: Tensor, gx: Tensor) -> float:
         """Geodesic distortion (units of eps) from the images ``gp`` of the points and ``gx`` of the
