@@ -104,6 +104,10 @@ def test_detect_errors():
         detect_symmetries(v, None)
     with pytest.raises(ValueError, match="mode"):
         detect_symmetries(v, f, mode="nope")
+    two_v = np.concatenate([v, v + 10.0])
+    two_f = np.concatenate([f, f + len(v)])
+    with pytest.raises(ValueError, match="2 connected components"):
+        detect_symmetries(two_v, two_f)
 
 
 def test_cli_detect_json_schema(tmp_path, capsys):
