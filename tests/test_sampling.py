@@ -36,3 +36,24 @@ def test_fps_prefix_is_spread_and_n_is_clamped():
     d = torch.cdist(head, head) + torch.eye(10) * 1e9
     dall = torch.cdist(x, x) + torch.eye(400) * 1e9
     assert float(d.min()) > 10 * float(dall.min())
+
+
+def test_local_maxima_match_the_ring_definition():
+    import trimesh
+    from scipy.sparse.csgraph import shortest_path
+
+    from symtorch.sampling import local_maxima, vertex_adjacency
+
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V = len(m.vertices)
+    A = vertex_adjacency(m.faces, V)
+    hops = shortest_path(A, unweighted=True)  # [V, V] edge rings
+    rng = np.random.default_rng(2)
+    for values in (rng.random(V), np.round(m.vertices[:, 0], 1)):  # the second has many ties
+        rank = np.empty(V)
+        rank[np.lexsort((np.arange(V), values))] = np.arange(V)  # ties: the larger index wins
+        for rings in (1, 2, 3):
+            want = [v for v in range(V) if rank[v] >= rank[hops[v] <= rings].max()]
+            got = local_maxima(values, A, rings=rings)
+            assert sorted(got.tolist()) == sorted(want)
+            assert np.all(np.diff(values[got]) <= 0)  # by decreasing value
