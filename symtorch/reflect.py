@@ -359,7 +359,14 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     vt, ft = verts_unit, torch.as_tensor(faces)
     normals = vertex_normals(vt, ft)
     vote_samples = samples[: min(500, len(samples))]
-    select_dist = []  # distances among the selection samples: the same for every candidate
+    # distances among the first samples, solved once: the selection compares every candidate on
+    # the first n_select_verify of them, the verification uses the first n_verify
+    base_dist = []
+
+    def sample_dist(n: int) -> Tensor:
+        if not base_dist:
+            base_dist.append(solver.pairwise(samples[: max(n_verify, n_select_verify)]))
+        return base_dist[0][:n, :n]
 
     def select(guided: bool):
         """Upsample the candidates to ``ks``; the best one (see below) and the trials."""
@@ -378,10 +385,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             # but breaks the distances where it joins the body
             distortion = math.inf
             if vote < -select_vote:
-                if not select_dist:
-                    select_dist.append(solver.pairwise(vote_samples[:n_select_verify]))
-                distortion = isometry_score(solver, p2p_s, vote_samples[:n_select_verify],
-                                            source_dist=select_dist[0])[1]
+                distortion = isometry_score(solver, p2p_s, samples[:n_select_verify],
+                                            source_dist=sample_dist(n_select_verify))[1]
             trials.append((round(vote, 3), round(distortion, 3)))
             key = (0, distortion) if math.isfinite(distortion) else (1, vote)
             if best is None or key < best[0]:
@@ -399,7 +404,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         lap("refine")
         p2p = _dense_map(evecs[:, :kf] @ Cf, evecs[:, :kf], vt, ft, samples, n_local)
         lap("p2p")
-        score, distortion, worst = isometry_score(solver, p2p, samples[:n_verify], return_worst=True)
+        score, distortion, worst = isometry_score(solver, p2p, samples[:n_verify], return_worst=True,
+                                                  source_dist=sample_dist(n_verify))
         vote = float(orientation_vote(p2p, vt, normals, vote_samples))
         lap("verify")
         ok = score >= min_score and vote < -max_vote and worst < max_worst
