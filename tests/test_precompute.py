@@ -17,8 +17,8 @@ import symtorch.data.dataset as dataset_module
 from symtorch import cli, shapes
 from symtorch.data import MeshDataset
 from symtorch.io import write_mesh
-from symtorch.precompute import (FAILURES, default_pre_transform, done_names, find_meshes,
-                                 open_dataset, precompute)
+from symtorch.precompute import (FAILURES, SETTINGS, default_pre_transform, done_names,
+                                 find_meshes, open_dataset, precompute)
 
 K = 6
 ARGS = ["--k", str(K), "--no-detect", "--quiet"]
@@ -205,3 +205,19 @@ def test_open_dataset_needs_the_default_pre_transform(tmp_path):
         open_dataset(tmp_path / "src", tmp_path / "out")
     with pytest.raises(FileNotFoundError, match="not a symtorch precompute folder"):
         open_dataset(tmp_path / "src", tmp_path / "src")
+
+
+def test_k_refine_reaches_the_detector_and_the_settings(tmp_path, capsys):
+    make_tree(tmp_path / "src", n=1, subdivisions=2)
+    assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "out"), "--k", "40",
+                     "--k-refine", "20", "--quiet"]) == 0
+    s = json.loads((tmp_path / "out" / SETTINGS).read_text())
+    assert s["k_refine"] == 20 and s["default_pre_transform"]
+    # the detector's settings are part of the cache key: another k_refine is another cache
+    assert "k_refine=20" in s["key"]["pre_transform"]
+    assert repr(default_pre_transform(40, True, 0, 20)) != repr(default_pre_transform(40, True, 0))
+    ds = open_dataset(tmp_path / "src", tmp_path / "out")
+    sample = ds[0]
+    assert sample["sym_p2p"].shape[0] == 2  # the mirror blob: identity and its reflection
+    assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "o2"), "--k-refine", "1"]) == 2
+    assert "--k-refine must be >= 2, got 1" in capsys.readouterr().err
