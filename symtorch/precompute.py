@@ -76,8 +76,9 @@ def default_pre_transform(k: int = 64, detect: bool = True, seed: int = 0,
         k: eigenpairs per mesh.
         detect: add :class:`~symtorch.data.DetectSymmetries` (``sym_p2p``, ``sym_fmap``, ``sym_score``).
         seed: of the detector's generator.
-        k_refine: the detector's final basis size (default: ``detect_symmetries``'s, 60). 100 lowers
-            the dense error of the maps (FAUST 28.2 -> 25.7 x1e-3) at ~0.6 s more a 12.5K mesh.
+        k_refine: the detector's final basis size (default: ``detect_symmetries``'s, 60, capped by
+            the ``k`` cached eigenpairs the detector reuses). 100 (with ``k >= 108``) lowers the dense
+            error of the maps (FAUST 28.2 -> 25.7 x1e-3) at ~0.6 s more a 12.5K mesh.
     """
     transforms = [NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors()]
     if detect:
@@ -610,6 +611,9 @@ def _cmd_precompute(args) -> int:
     gt = None if args.ground_truth == "none" else args.ground_truth
     if args.k_refine is not None and args.k_refine < 2:
         raise ValueError(f"--k-refine must be >= 2, got {args.k_refine}")
+    if args.k_refine is not None and args.k < args.k_refine + 8:
+        raise ValueError(f"--k must be at least --k-refine + 8 (the detector refines in the cached "
+                         f"basis, whose last band may be cut): got --k {args.k}, --k-refine {args.k_refine}")
     s = precompute(args.src, args.out, k=args.k, detect=args.detect, k_refine=args.k_refine,
                    workers=args.workers,
                    dtype=_DTYPES[args.dtype], ground_truth=gt, seed=args.seed,
@@ -644,7 +648,8 @@ def register_cli(subparsers) -> None:
     p.add_argument("--detect", action=argparse.BooleanOptionalAction, default=True,
                    help="also detect the symmetries (default yes)")
     p.add_argument("--k-refine", type=int, default=None, metavar="K",
-                   help="the detector's final basis size (default 60; 100: lower dense error, slower)")
+                   help="the detector's final basis size (default 60; 100: lower dense error, slower); "
+                        "needs --k >= K + 8")
     p.add_argument("--dtype", choices=sorted(_DTYPES), default="float32")
     p.add_argument("--ground-truth", choices=["none", "template", "vts"], default="none",
                    help="ground-truth correspondences to store (see MeshDataset)")

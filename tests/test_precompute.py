@@ -221,3 +221,5 @@ def test_k_refine_reaches_the_detector_and_the_settings(tmp_path, capsys):
     assert sample["sym_p2p"].shape[0] == 2  # the mirror blob: identity and its reflection
     assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "o2"), "--k-refine", "1"]) == 2
     assert "--k-refine must be >= 2, got 1" in capsys.readouterr().err
+    assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "o2"), "--k-refine", "60"]) == 2
+    assert "--k must be at least --k-refine + 8" in capsys.readouterr().err
