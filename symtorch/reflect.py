@@ -279,7 +279,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
                       max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, early_distortion: float = 0.25,
                       select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
-                      n_local: int = 64, w_guide: float = 1.0, timer=None) -> SymmetryResult:
+                      n_local: int = 64, w_guide: float = 1.0, compare_ratio: float = 2.0, timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
     Args:
@@ -296,7 +296,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         select_vote: candidates voting below ``-select_vote`` are compared by geodesic distortion
             (``isometry_score`` on ``n_select_verify`` samples), the others only by their vote.
         early_vote, early_distortion: stop comparing candidates once one votes below
-            ``-early_vote`` with a distortion below ``early_distortion`` (KLC units).
+            ``-early_vote`` with a distortion below ``early_distortion`` (KLC units) and the next
+            candidate's consistency score exceeds ``compare_ratio`` times the first's.
         n_verify: samples of the final geodesic verification (2 heat solves each).
         w_guide: weight of the orientation guide (``_orientation_guide``) in a second selection,
             run only where the first one yields no verified reflection (0: no second selection).
@@ -391,8 +392,12 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             key = (0, distortion) if math.isfinite(distortion) else (1, vote)
             if best is None or key < best[0]:
                 best = (key, (c, kc), Cs)
-            if vote < -early_vote and distortion < early_distortion:
-                break  # clearly a full reflection: candidates are in order of consistency
+            if (vote < -early_vote and distortion < early_distortion
+                    and (c + 1 >= len(perms) or perm_scores[c + 1] > compare_ratio * perm_scores[0])):
+                # clearly a full reflection, and the next candidates are clearly less consistent
+                # (candidates nearly as consistent as the first are all compared: they differ in how
+                # a few extrema pair up, e.g. a paw swapped or kept, which only the maps tell apart)
+                break
         return best, trials
 
     def refine_and_verify(Cs):

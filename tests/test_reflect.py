@@ -1,5 +1,6 @@
 """Reflective symmetry detection (symtorch.reflect, detect_symmetries(mode='reflection'))."""
 import json
+import math
 
 import numpy as np
 import pytest
@@ -177,3 +178,17 @@ def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
     assert strict.info["guided"]["orientation"] < -0.5  # the guided map is a reflection all the same
     off = detect_reflection(v, f, s, min_score=1.01, w_guide=0)
     assert "guided" not in off.info
+
+
+def test_nearly_as_consistent_candidates_are_all_compared():
+    from symtorch.reflect import detect_reflection
+    from symtorch.shapes import star_prism
+
+    v, f = (torch.as_tensor(x) for x in star_prism(3))  # D5h: several candidate involutions
+    s = laplacian_spectrum(v, f, k=80)
+    one = detect_reflection(v, f, s, compare_ratio=0.0)  # stop at the first clear reflection
+    every = detect_reflection(v, f, s, compare_ratio=math.inf)  # compare every candidate
+    n = min(one.info["n_candidates"], 8)
+    assert n > 1 and len(one.info["trials"]) == 1 and len(every.info["trials"]) == n
+    for r in (one, every):
+        assert r.reflection is not None and r.reflection.score > 0.9
