@@ -4,12 +4,11 @@ from __future__ import annotations
 import logging
 import time
 
-import numpy as np
 import torch
 
 from ._checks import check_mesh
 from .result import SymmetryResult
-from .sampling import vertex_adjacency
+from .sampling import count_components
 from .spectrum import Spectrum, laplacian_spectrum
 
 log = logging.getLogger(__name__)
@@ -34,21 +33,11 @@ def _shape_inputs(shape, faces):
     if faces is None:
         raise ValueError("symmetry detection needs a triangle mesh; got a point cloud (faces=None)")
     verts, faces = check_mesh(shape, faces)
-    n_parts = _n_components(faces, len(verts))
+    n_parts = count_components(faces, len(verts))
     if n_parts > 1:
         raise ValueError(f"mesh has {n_parts} connected components; symmetry detection needs one "
                          "connected surface (detect each part on its own, or merge seam duplicates)")
     return verts, faces
-
-
-def _n_components(faces, n_verts: int) -> int:
-    """Connected components of the vertices the faces reference."""
-    from scipy.sparse.csgraph import connected_components
-
-    f = np.asarray(faces)
-    used = np.unique(f)
-    _, labels = connected_components(vertex_adjacency(f, n_verts), directed=False)
-    return int(np.unique(labels[used]).size)
 
 
 def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,

@@ -453,8 +453,7 @@ def _report(v: np.ndarray, f: np.ndarray | None) -> dict:
                euler_characteristic=None, genus=None)
     if f is None:
         return rep
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from .sampling import count_components
 
     areas = face_areas(v, f)
     diag2 = float(np.sum(np.ptp(v, axis=0) ** 2))
@@ -468,9 +467,7 @@ def _report(v: np.ndarray, f: np.ndarray | None) -> dict:
 
     referenced = np.zeros(n_verts, dtype=bool)
     referenced[f.ravel()] = True
-    adj = coo_matrix((np.ones(len(uniq)), (uniq[:, 0], uniq[:, 1])), shape=(n_verts, n_verts))
-    _, labels = connected_components(adj, directed=False)
-    n_comp = int(np.unique(labels[referenced]).size)
+    n_comp = count_components(f, n_verts)
 
     n_boundary, n_nonmanifold = int((counts == 1).sum()), int((counts > 2).sum())
     chi = int(referenced.sum()) - len(uniq) + len(f)

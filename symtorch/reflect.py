@@ -267,13 +267,6 @@ def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tenso
     return vote.sum((-2, -1)) / ok.sum((-2, -1)).clamp_min(1)
 
 
-def _embedding_residual(C: Tensor, E: Tensor, S: Tensor, targets: Tensor) -> float:
-    """Mean distance from the mapped sample rows ``E[S] @ C`` to their nearest target rows, relative."""
-    Q = E[S] @ C
-    nn = nearest_neighbors(Q, E[targets])
-    return float((Q - E[targets][nn]).norm(dim=1).mean() / E[S].norm(dim=1).mean())
-
-
 def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,

@@ -19,6 +19,15 @@ def vertex_adjacency(faces, n_verts: int) -> sp.csr_matrix:
     return A
 
 
+def count_components(faces, n_verts: int) -> int:
+    """Connected components of the vertices the faces reference (unreferenced vertices are ignored)."""
+    from scipy.sparse.csgraph import connected_components
+
+    f = to_numpy(faces, np.int64)
+    _, labels = connected_components(vertex_adjacency(f, n_verts), directed=False)
+    return int(np.unique(labels[np.unique(f)]).size)
+
+
 def knn_adjacency(verts, k: int = 8) -> sp.csr_matrix:
     """[V, V] symmetric k-nearest-neighbour adjacency of a point cloud."""
     from scipy.spatial import cKDTree

@@ -57,3 +57,16 @@ def test_local_maxima_match_the_ring_definition():
             got = local_maxima(values, A, rings=rings)
             assert sorted(got.tolist()) == sorted(want)
             assert np.all(np.diff(values[got]) <= 0)  # by decreasing value
+
+
+def test_count_components_ignores_unreferenced_vertices():
+    import trimesh
+
+    from symtorch.sampling import count_components
+
+    m = trimesh.creation.icosphere(subdivisions=1)
+    V = len(m.vertices)
+    faces = np.concatenate([m.faces, m.faces + V])
+    assert count_components(m.faces, V) == 1
+    assert count_components(faces, 2 * V) == 2
+    assert count_components(m.faces, V + 7) == 1  # 7 vertices no face references
