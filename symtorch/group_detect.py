@@ -79,11 +79,11 @@ from .group_maps import canonical_order, consistent_orientation, largest_subgrou
 from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
 from .procrustes import block_procrustes, block_project
-from .maps import nearest_neighbors, nearest_neighbors_among
+from .maps import nearest_neighbors, nearest_neighbors_among, p2p_to_fmap
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
-from .spectrum import Spectrum, band_boundary, eigen_bands
+from .spectrum import Spectrum, band_boundary, solved_bands
 
 log = logging.getLogger(__name__)
 
@@ -248,7 +248,6 @@ class _Geometry:
 
     def __init__(self, verts_unit: np.ndarray, faces: np.ndarray, spectrum: Spectrum, points: np.ndarray,
                  dist_points: Tensor, n_samples: int):
-        self.verts_unit, self.faces = verts_unit, faces
         self.evecs, self.mass = spectrum.evecs, spectrum.mass
         self.evecs32 = self.evecs.float()  # nearest neighbours need no float64
         V = self.evecs.shape[0]
@@ -301,10 +300,6 @@ class _Geometry:
         # that points of P placed slightly asymmetrically (flat extrema) do not count as distortion
         dev = ((D[pi][:, gx] - D[:, self.score_samples]).abs() - off[:, None]).clamp_min(0).mean()
         return float((dev + 0.25 * off.mean()) / EPS_KLC)
-
-    def distortion(self, p2p: Tensor) -> float:
-        """Geodesic distortion of a full vertex map ``p2p [V]``, in units of eps."""
-        return self.distortion_at(p2p[self.points], p2p[self.score_samples])
 
 
 # ------------------------------------------------------------------------------------ detection
@@ -398,8 +393,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     lap = timer.lap if timer is not None else (lambda name: None)
     evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
     V = evecs.shape[0]
-    bands = eigen_bands(evals)
-    bands = bands[:-1] if len(bands) > 1 else bands  # the last band may be cut by the eigensolve
+    bands = solved_bands(evals)
     bands0, k0 = _coarse_bands(bands, k)
     kf = band_boundary(bands, k_refine)
     if refine == "icp":
@@ -581,8 +575,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     for i, e in enumerate(final):
         if e[2] > max_distortion and elems[i]["dst"] <= max_distortion and kf != k0:
             p2p = geo.p2p(elems[i]["C0"])
-            Ek = evecs[:, :kf]
-            Cf = block_project((Ek * mass[:, None]).mT @ Ek[p2p], [b for b in bands if b.stop <= kf])
+            Cf = block_project(p2p_to_fmap(p2p, evecs[:, :kf], mass), [b for b in bands if b.stop <= kf])
             final[i] = (Cf, p2p, exact_distortion(p2p))
     info["rejected_exact"] = [round(e[2], 3) for e in final if e[2] > max_distortion]
     elems = [e for e in final if e[2] <= max_distortion or e is final[0]]
@@ -633,8 +626,7 @@ def has_multiplicities(evals: Tensor, k: int = 20, min_share: float = 0.45) -> b
     on SCAPE, TOSCA and Watertight meshes, except two weakly coupled identical parts (glasses: 0.58),
     which the group path then answers with its mirror.
     """
-    bands = eigen_bands(evals)
-    bands = bands[:-1] if len(bands) > 1 else bands
+    bands = solved_bands(evals)
 
     def share(kk: int) -> float:
         b0 = [b for b in _coarse_bands(bands, kk)[0] if b.start > 0]

@@ -50,7 +50,7 @@ from pathlib import Path
 
 import torch
 
-from .io import atomic_write
+from .io import _one_line, atomic_write
 from .data.dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
                            file_stamp, process_file, read_meta, write_meta)
 from .data.transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
@@ -151,10 +151,6 @@ def _init_worker(pre_transform, dtype, ground_truth, log_level, parent_pid) -> N
             os._exit(1)
 
         threading.Thread(target=watch, daemon=True).start()
-
-
-def _one_line(e: BaseException) -> str:
-    return " ".join(str(e).split()) or type(e).__name__
 
 
 def _run_item(raw: str, out: str) -> dict:
@@ -390,14 +386,13 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
     collided = {id(c): f for c, f in collisions}
     summary = Summary(total=len(mine), rank=rank, world_size=world)
     rec = _Recorder(out, key, rank)
-    todo, metas, reported = [], {}, set()
+    todo, metas = [], {}
     for item in mine:
-        (out / item.folder).mkdir(parents=True, exist_ok=True)
-        if item.folder not in metas:
+        if item.folder not in metas:  # once per folder
+            (out / item.folder).mkdir(parents=True, exist_ok=True)
             metas[item.folder] = read_meta(out / item.folder)
             meta = metas[item.folder]
-            if meta is not None and meta.get("key") != key and item.folder not in reported:
-                reported.add(item.folder)
+            if meta is not None and meta.get("key") != key:
                 log.warning("cache %s was made with other settings; processing it again",
                             out / item.folder)
         first = collided.get(id(item))

@@ -45,7 +45,7 @@ from .procrustes import block_procrustes
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
-from .spectrum import Spectrum, band_boundary, eigen_bands
+from .spectrum import Spectrum, band_boundary, solved_bands
 
 
 __all__ = ["heat_extrema", "seed_pairs", "extend_involution", "involution_candidates",
@@ -303,8 +303,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     """
     lap = timer.lap if timer is not None else (lambda name: None)
     evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
-    bands = eigen_bands(evals)
-    bands = bands[:-1] if len(bands) > 1 else bands  # the last band may be cut by the eigensolve
+    bands = solved_bands(evals)
     ks, kf = band_boundary(bands, k_select), band_boundary(bands, k_refine)
     # coarse sizes the upsampling may start from: near-identity and reflection differ in few of the
     # first modes, so a small start can collapse to the identity where a larger one holds

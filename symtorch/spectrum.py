@@ -254,6 +254,13 @@ def eigen_bands(evals, rel_gap: float = 0.3, window: int = 4) -> list[range]:
     return bands
 
 
+def solved_bands(evals) -> list[range]:
+    """``eigen_bands(evals)`` without the last band, which the eigensolve may have cut (kept when it
+    is the only one): the bands a symmetry matrix can be block-diagonal over."""
+    bands = eigen_bands(evals)
+    return bands[:-1] if len(bands) > 1 else bands
+
+
 def band_boundary(bands: list[range], target: int) -> int:
     """The end of the band whose end is closest to ``target`` (never cutting a band)."""
     ends = np.array([b.stop for b in bands])

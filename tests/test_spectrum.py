@@ -381,3 +381,12 @@ def test_bands_on_three_scape_meshes(shared_data, tmp_path):
         structures.append(sizes)
     # on these three poses: constant mode, a near-double pair, then singles
     assert all(s[:5] == [1, 2, 1, 1, 1] for s in structures), structures
+
+
+def test_solved_bands_drop_the_last_band_unless_it_is_the_only_one():
+    from symtorch.spectrum import eigen_bands, solved_bands
+
+    evals = torch.tensor([0.0, 1.0, 1.0, 2.0, 3.0, 3.01], dtype=torch.float64)
+    assert solved_bands(evals) == eigen_bands(evals)[:-1]
+    one = torch.tensor([1.0, 1.0], dtype=torch.float64)
+    assert solved_bands(one) == eigen_bands(one) and len(eigen_bands(one)) == 1

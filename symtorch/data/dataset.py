@@ -16,7 +16,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
-from ..io import atomic_write
+from ..io import atomic_write, read_mesh
 
 log = logging.getLogger(__name__)
 
@@ -61,18 +61,8 @@ def read_sample(path: str | os.PathLike, dtype: torch.dtype = torch.float32,
         the raw sample, before any transform.
     """
     path = Path(path)
-    try:
-        from ..io import read_mesh
-    except ImportError:  # the reader is optional at this layer; trimesh keeps the order too
-        read_mesh = None
-    if read_mesh is not None:
-        mesh = read_mesh(path)
-        verts, faces = mesh.verts, mesh.faces
-    else:
-        import trimesh
-
-        mesh = trimesh.load(str(path), process=False, maintain_order=True, force="mesh")
-        verts, faces = mesh.vertices, mesh.faces
+    mesh = read_mesh(path)
+    verts, faces = mesh.verts, mesh.faces
     sample = {"name": path.stem, "verts": torch.as_tensor(np.asarray(verts), dtype=dtype)}
     if faces is not None:
         sample["faces"] = torch.as_tensor(np.asarray(faces), dtype=torch.long)
@@ -220,9 +210,12 @@ class MeshDataset(Dataset):
         """What a cached sample depends on besides its mesh file."""
         return cache_key(self.pre_transform, self.dtype, self.ground_truth)
 
+    def processed_path(self, index: int) -> Path:
+        return self.processed_dir / f"{self.names[index]}.pt"
+
     @property
     def processed_paths(self) -> list[Path]:
-        return [self.processed_dir / f"{n}.pt" for n in self.names]
+        return [self.processed_path(i) for i in range(len(self.names))]
 
     def _read_meta(self) -> dict | None:
         return read_meta(self.processed_dir)
@@ -267,7 +260,7 @@ class MeshDataset(Dataset):
 
     def get(self, index: int) -> dict:
         """The cached (pre-transformed) sample, without ``transform``."""
-        return torch.load(self.processed_paths[index], weights_only=True)
+        return torch.load(self.processed_path(index), weights_only=True)  # O(1), not a list per item
 
     def __getitem__(self, index: int) -> dict:
         sample = self.get(index)
