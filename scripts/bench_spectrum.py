@@ -58,7 +58,7 @@ def bench_spectrum(specs: list[str], ks: list[int], repeat: int) -> None:
         mass = mass / mass.sum()  # unit area, as laplacian_spectrum does
         M = sp.diags(mass).tocsc()
         for k in ks:
-            t_full, full = best_of(lambda: laplacian_spectrum(verts, faces, k), repeat)
+            t_full, _ = best_of(lambda: laplacian_spectrum(verts, faces, k), repeat)
             t_ours, (evals, _) = best_of(lambda: generalized_eigsh(W, mass, k), repeat)
             t_plain, (ev_plain, _) = best_of(
                 lambda: sla.eigsh(W, k, M, sigma=-1e-3, which="LM"), repeat)

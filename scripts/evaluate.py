@@ -1,6 +1,6 @@
 """Evaluate reflection detection on a whole benchmark (ALGORITHM §6) and print a table.
 
-    python scripts/evaluate.py --dataset SCAPE [--limit N] [--method symtorch|pyfm] [--out results.csv]
+    python scripts/evaluate.py --dataset SCAPE [--limit N] [--method symtorch|pyfm] [--k-refine K] [--out results.csv]
 
 Per mesh: name, V, kind of the scored symmetry, correspondence rate (share of ground-truth points
 with geodesic error below sqrt(area/(20 pi))), normalised mean error (mean / sqrt(area), ×1e-3),
@@ -33,7 +33,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for baseline_pyfm
 
 from symtorch.benchmarks import DATASETS, list_benchmark, load_ground_truth, load_mesh  # noqa: E402
-from symtorch.eval import (geodesic_errors, klc_rates, mesh_rate, normalized_error,  # noqa: E402
+from symtorch.eval import (evenly_spaced, geodesic_errors, klc_rates, mesh_rate, normalized_error,  # noqa: E402
                            orbit_errors)
 from symtorch.geodesics import GeodesicSolver  # noqa: E402
 
@@ -50,12 +50,12 @@ def pick_symmetry(result):
     return None
 
 
-def run_symtorch(verts: np.ndarray, faces: np.ndarray, mode: str = "auto") -> tuple[np.ndarray, str]:
+def run_symtorch(verts: np.ndarray, faces: np.ndarray, mode: str = "auto",
+                 k_refine: int = 60) -> tuple[np.ndarray, str]:
     import symtorch
 
-    if not hasattr(symtorch, "detect_symmetries"):
-        raise SystemExit("symtorch.detect_symmetries is not available yet; try --method pyfm")
-    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode)
+    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode,
+                                        k_refine=k_refine)
     sym = pick_symmetry(result)
     if sym is None:
         return np.arange(len(verts)), "none"
@@ -69,7 +69,7 @@ def run_pyfm(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
 
 
 def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,
-                  mode: str = "auto") -> dict | None:
+                  mode: str = "auto", k_refine: int = 60) -> dict | None:
     try:
         gt = load_ground_truth(dataset, name)
     except FileNotFoundError:
@@ -77,15 +77,16 @@ def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: i
         return None
     verts, faces = load_mesh(path)
     t0, c0 = time.perf_counter(), time.process_time()
-    p2p, kind = run_symtorch(verts, faces, mode) if method == "symtorch" else run_pyfm(verts, faces)
+    p2p, kind = (run_symtorch(verts, faces, mode, k_refine) if method == "symtorch"
+                 else run_pyfm(verts, faces))
     t_method, c_method = time.perf_counter() - t0, time.process_time() - c0
 
     t0 = time.perf_counter()
     solver = GeodesicSolver(verts, faces)  # original units: errors and area agree
     if gt.kind == "pairs":
         pairs = gt.pairs
-        if max_pairs and len(pairs) > max_pairs:
-            pairs = pairs[np.linspace(0, len(pairs) - 1, max_pairs).round().astype(int)]
+        if max_pairs:
+            pairs = evenly_spaced(pairs, max_pairs)
         errors = geodesic_errors(solver, p2p, pairs)
     else:
         errors = orbit_errors(solver, p2p, gt.orbits, identity=(kind in ("identity", "none")))
@@ -102,6 +103,8 @@ def main(argv=None) -> int:
     parser.add_argument("--method", default="symtorch", choices=["symtorch", "pyfm"])
     parser.add_argument("--mode", default="auto", choices=["auto", "reflection", "group"],
                         help="detect_symmetries mode (symtorch method)")
+    parser.add_argument("--k-refine", type=int, default=60,
+                        help="detect_symmetries k_refine, the final basis size (symtorch method)")
     parser.add_argument("--limit", type=int, default=None, help="first N meshes only")
     parser.add_argument("--names", nargs="*", default=None, help="only these meshes")
     parser.add_argument("--max-pairs", type=int, default=1000,
@@ -122,7 +125,8 @@ def main(argv=None) -> int:
     print(header)
     rows = []
     for name, path in meshes:
-        row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs, args.mode)
+        row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs, args.mode,
+                            args.k_refine)
         if row is None:
             continue
         rows.append(row)

@@ -21,7 +21,8 @@ import torch
 
 from symtorch import detect_symmetries
 from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
-from symtorch.eval import geodesic_errors, klc_rates
+from symtorch._checks import face_areas
+from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 from symtorch.geodesics import GeodesicSolver
 from symtorch.reflect import isometry_score
 
@@ -45,14 +46,14 @@ def main(argv=None) -> int:
         verts, faces = load_mesh(path)
         pairs = load_ground_truth(args.dataset, name).pairs
         src, first = np.unique(pairs[:, 0], return_index=True)
-        pick = np.linspace(0, len(src) - 1, min(args.max_points, len(src))).round().astype(int)
+        pick = evenly_spaced(np.arange(len(src)), args.max_points)
         src, img = src[pick], pairs[first[pick], 1]
         result = detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces))
         sym = result.reflection
         p2p = sym.p2p if sym is not None else torch.arange(len(verts))
-        solver = GeodesicSolver(verts, faces)
-        rate = float(klc_rates(geodesic_errors(solver, p2p.numpy(), pairs), solver.area))
-        unit = GeodesicSolver(verts / np.sqrt(solver.area), faces)  # isometry_score works at unit area
+        # one solver at unit area (isometry_score's unit); the KLC rate is scale-free
+        unit = GeodesicSolver(verts / np.sqrt(float(face_areas(verts, faces).sum())), faces)
+        rate = float(klc_rates(geodesic_errors(unit, p2p.numpy(), pairs), unit.area))
         gt = torch.arange(len(verts))
         gt[torch.as_tensor(src)] = torch.as_tensor(img)
         samples = torch.as_tensor(src)

@@ -25,13 +25,13 @@ from scipy.spatial import cKDTree
 
 from symtorch import laplacian_spectrum
 from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
-from symtorch.eval import geodesic_errors, normalized_error
+from symtorch.eval import evenly_spaced, geodesic_errors, normalized_error
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import nearest_neighbors, p2p_to_fmap
 from symtorch.procrustes import block_project
 from symtorch.refine import zoomout_symmetry
 from symtorch.sampling import farthest_point_sampling
-from symtorch.spectrum import band_boundary, eigen_bands
+from symtorch.spectrum import band_boundary, solved_bands
 
 VARIANTS = {  # name: (k_final, samples (0: all vertices), zoomout_symmetry keywords)
     "k60": (60, 2000, dict(involution=True, block=False)),
@@ -66,10 +66,10 @@ def main(argv=None) -> int:
         pairs = load_ground_truth(args.dataset, name).pairs
         spec = laplacian_spectrum(v, f, k=max(args.oracle_k) + 10)
         E, M = spec.evecs, spec.mass
-        bands = eigen_bands(spec.evals)[:-1]
+        bands = solved_bands(spec.evals)
         g = torch.as_tensor(dense_truth(v, pairs))
         solver = GeodesicSolver(v, f)
-        scored = pairs[np.linspace(0, len(pairs) - 1, 1000).round().astype(int)]
+        scored = evenly_spaced(pairs, 1000)
 
         def err(p2p: torch.Tensor) -> float:
             return 1e3 * normalized_error(geodesic_errors(solver, p2p.numpy(), scored), solver.area)

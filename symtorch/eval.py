@@ -62,6 +62,14 @@ def _check_pairs(pairs, n_verts: int) -> np.ndarray:
     return q
 
 
+def evenly_spaced(rows, n: int):
+    """At most ``n`` rows of ``rows`` (array or tensor), evenly spaced, first and last kept: the
+    subsample the benchmark scripts score dense ground truth on."""
+    if n <= 0 or len(rows) <= n:
+        return rows
+    return rows[np.linspace(0, len(rows) - 1, n).round().astype(np.int64)]
+
+
 def klc_threshold(area: float) -> float:
     """KLC10 correctness radius ``sqrt(area / (20 pi))``, in the units of the mesh."""
     return math.sqrt(float(area) / (20.0 * math.pi))
