@@ -589,20 +589,19 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     elems = [elems[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e[1], x_unit, torch.as_tensor(faces))
                                          for e in elems])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ginfo = group_info(table, torch.tensor(rev))
     _, residual = cayley_table(torch.stack([e[0] for e in elems]))
     info["cayley_max_residual"] = round(float(residual.max()), 4)
     lap("group")
-    order_ = canonical_order(ginfo.table, ginfo.reversing, [e[2] for e in elems])
+    # elements in the paper's order (Table 3), then the group report of the reordered table
+    table, rev = torch.as_tensor(table, dtype=torch.long), torch.as_tensor(np.asarray(rev, dtype=bool))
+    order_ = canonical_order(table, rev, [e[2] for e in elems])
     perm = torch.tensor(order_)
     inv_perm = torch.empty_like(perm)
     inv_perm[perm] = torch.arange(len(perm))
-    table = inv_perm[ginfo.table[perm][:, perm]]
+    table = inv_perm[table[perm][:, perm]]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ginfo = group_info(table, ginfo.reversing[perm])
+        ginfo = group_info(table, rev[perm])
     symmetries = []
     for new_i, i in enumerate(order_):
         Cf, p2p, dst = elems[i]
