@@ -44,7 +44,8 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
                       spectrum: Spectrum | None = None, mode: str = "auto",
                       n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12,
                       nms_radius: float = 2.0, min_score: float = 0.5, n_refine: int = 8,
-                      generator: torch.Generator | None = None) -> SymmetryResult:
+                      generator: torch.Generator | None = None,
+                      device: torch.device | str | None = None) -> SymmetryResult:
     """Find the global intrinsic symmetries of a triangle mesh.
 
     Args:
@@ -70,6 +71,11 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
         n_refine: candidate involutions the reflection path upsamples and compares.
         generator: accepted so that callers can pass one; detection is deterministic and draws
             nothing from it.
+        device: where the group path's batched candidate stages run (block Procrustes over all
+            candidate tuples, batched ICP, mean shift); default the spectrum's device (CPU when the
+            spectrum is solved here). The mesh geometry (heat-method geodesics, Dijkstra, k-d trees)
+            and the per-element refinement run on CPU in float64 whatever the device. The result's
+            matrices, maps and spectrum are on the device of the ``spectrum`` passed in (CPU without one).
 
     Returns:
         SymmetryResult, identity first, then best first.
@@ -83,19 +89,23 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 60,
         raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
     if spectrum is None:
         spectrum = laplacian_spectrum(verts, faces, k=int(k_refine * 1.3) + 8)
+    out_device = spectrum.evecs.device
+    batch_device = torch.device(device) if device is not None else out_device
+    # the geometry is solved on the host: the spectrum follows it there, the result goes back
+    spectrum = spectrum.to("cpu")
     timer.lap("spectrum")
     from .group_detect import detect_group, has_multiplicities, with_group
     from .reflect import detect_reflection
     grouped = None
     if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
         grouped = detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                               timer=timer)
+                               timer=timer, device=batch_device).to(out_device)
         if mode == "group" or grouped.continuous or grouped.group["order"] > 2:
             return grouped
     reflected = detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
                                   n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
                                   block_refine=block_refine, min_score=min_score, timer=timer)
-    result = with_group(reflected, verts, faces)
+    result = with_group(reflected, verts, faces).to(out_device)
     if grouped is not None and grouped.group["order"] > result.group["order"]:
         return grouped
     return result

@@ -364,7 +364,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
                  k_refine: int = 60, n_points: int = 40, n_sources: int = 3, delta: float = 0.9,
                  bandwidth: float = 0.6, n_samples: int = 1000, max_distortion: float = 0.25,
                  refine: str = "zoomout", max_modes: int = 64, desc_tol: float = 0.25, n_icp: int = 3,
-                 max_candidates: int = 400,
+                 max_candidates: int = 400, device: torch.device | str | None = None,
                  timer=None) -> SymmetryResult:
     """Every symmetry of a mesh as a group (ALGORITHM §5); see the module docstring for the steps.
 
@@ -385,12 +385,16 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
         n_icp: batched spectral ICP steps applied to every candidate before clustering (0: none).
         desc_tol: a target point must have standardised log-descriptors within ``desc_tol`` times the
             median distance of all point pairs of its source point.
+        device: where the batched candidate stages run (block Procrustes, batched ICP, mean shift);
+            default CPU. Everything else runs on CPU, and the result is on CPU.
         timer: optional ``detect._Timer``.
 
     Returns:
         SymmetryResult with ``group`` filled (``GroupInfo.to_dict()``), identity first.
     """
     lap = timer.lap if timer is not None else (lambda name: None)
+    dev = torch.device("cpu") if device is None else torch.device(device)
+    spectrum = spectrum.to("cpu")
     evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
     V = evecs.shape[0]
     bands = solved_bands(evals)
@@ -474,19 +478,21 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     # 1_{g(p)} ∘ g = 1_p: the functions (A) are disks at the targets q, their pull-backs (B) at p
     A = torch.cat([A_disk[:, Qt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
     B = torch.cat([A_disk[:, Pt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
+    A, B = A.to(dev), B.to(dev)
     C = block_procrustes(A, B, bands0)  # [Bn, k0, k0]
     if Bn > max_candidates:  # keep the candidates whose constraints the matrix fits best
         fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
         best = torch.argsort(fit)[:max_candidates]
-        C, P, Q, Bn = C[best], P[best.numpy()], Q[best.numpy()], max_candidates
+        C, P, Q, Bn = C[best], P[best.cpu().numpy()], Q[best.cpu().numpy()], max_candidates
         info["n_candidates_kept"] = Bn
     lap("procrustes")
     if n_icp > 0:
         tgt = geo.samples[: min(len(geo.samples), 600)]
-        C = batched_icp(C, E0[geo.score_samples], E0[tgt], bands0, n_icp)
+        C = batched_icp(C, E0[geo.score_samples].to(dev), E0[tgt].to(dev), bands0, n_icp)
         lap("icp")
     # 4. mean shift
-    modes, labels, counts = mean_shift(C.reshape(Bn, -1), bandwidth)
+    modes, labels, counts = (x.cpu() for x in mean_shift(C.reshape(Bn, -1), bandwidth))
+    C = C.cpu()
     info["n_clusters"] = int(len(modes))
     info["cluster_sizes"] = [int(c) for c in counts[:max_modes].tolist()]
     reps = []

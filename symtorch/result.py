@@ -1,7 +1,7 @@
 """Result types of symmetry detection."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import torch
@@ -50,6 +50,15 @@ class SymmetryResult:
     continuous: bool = False
     timings: dict[str, float] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+
+    def to(self, device: torch.device | str) -> SymmetryResult:
+        """The result with its matrices, maps and spectrum on ``device`` (itself when already there)."""
+        device = torch.empty(0, device=device).device  # 'cuda' -> 'cuda:0', as tensors report it
+        tensors = [self.spectrum.evecs] + [t for s in self.symmetries for t in (s.C, s.p2p)]
+        if all(t.device == device for t in tensors):
+            return self
+        return replace(self, spectrum=self.spectrum.to(device),
+                       symmetries=[replace(s, C=s.C.to(device), p2p=s.p2p.to(device)) for s in self.symmetries])
 
     @property
     def fmaps(self) -> Tensor:

@@ -38,6 +38,13 @@ class Spectrum(NamedTuple):
     mass: Tensor
     scale: float
 
+    def to(self, device: torch.device | str | None = None, dtype: torch.dtype | None = None) -> Spectrum:
+        """The spectrum with its tensors on ``device`` / in ``dtype`` (unchanged where None)."""
+        moved = [t.to(device=device, dtype=dtype) for t in (self.evals, self.evecs, self.mass)]
+        if all(a is b for a, b in zip(moved, (self.evals, self.evecs, self.mass))):
+            return self  # already there: the same object, as ``Tensor.to`` does
+        return Spectrum(*moved, self.scale)
+
 
 def laplacian_matrices(verts, faces=None, *, n_neighbors: int = 30,
                        mollify_factor: float = 1e-5) -> tuple[sp.csc_matrix, np.ndarray]:

@@ -3,6 +3,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 sys.path.insert(0, str(Path(__file__).parent))
 
@@ -16,3 +17,13 @@ def shared_data():
     if d is None or not Path(d).is_dir():
         pytest.skip("shared data not found: set $SYMTORCH_SHARED or place it at ../shared/data")
     return Path(d)
+
+
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.is_available(),
+                                                                reason="no CUDA device"))]
+
+
+@pytest.fixture(params=DEVICES)
+def device(request):
+    """Each torch device the library runs on: CPU, and CUDA where a GPU is present."""
+    return torch.device("cuda:0" if request.param == "cuda" else request.param)  # as tensors report it

@@ -82,3 +82,15 @@ def test_dataloader_with_two_workers(tmp_path):
             assert torch.equal(p.sort().values, torch.arange(V))
         seen += B
     assert seen == 6
+
+
+def test_pad_collate_on_device(device):
+    """Samples already on ``device`` (a GPU pre-transform) collate there, masks included."""
+    a, b = shape(1, with_mirror=False), shape(2)
+    move = (lambda s: {k: v.to(device) if torch.is_tensor(v) else v for k, v in s.items()})
+    batch, ref = pad_collate([move(a), move(b)]), pad_collate([a, b])
+    assert set(batch) == set(ref)
+    for key, val in ref.items():
+        if torch.is_tensor(val):
+            assert batch[key].device == torch.device(device), key
+            assert torch.equal(batch[key].cpu(), val), key

@@ -133,3 +133,31 @@ def test_gradient_cross_flips_sign_under_a_reflection():
     assert float(x[far].abs().mean()) > 0.1  # not trivially zero
     # swapping the pair flips the sign too
     assert torch.allclose(gradient_cross(verts, faces, fields, torch.tensor([[1, 0]]))[:, 0], -x)
+
+
+def test_descriptors_on_device(mirror, device):
+    """HKS, WKS and the combined descriptor on ``device``: the CPU values, and mirror-invariant."""
+    s, perm = mirror
+    evals, evecs = s.evals.to(device), s.evecs.to(device)
+    times = default_times(evals, 4)
+    energies, sigma = default_energies(evals, 4)
+    assert times.device == evals.device and energies.device == evals.device
+    for got, ref in ((hks(evals, evecs, times), hks(s.evals, s.evecs, times.cpu())),
+                     (wks(evals, evecs, energies, sigma), wks(s.evals, s.evecs, energies.cpu(), sigma)),
+                     (descriptors(evals, evecs), descriptors(s.evals, s.evecs))):
+        assert got.device == evecs.device
+        torch.testing.assert_close(got.cpu(), ref)
+    d = descriptors(evals, evecs)
+    assert float((d[perm.to(device)] - d).abs().max()) < 1e-6 * float(d.abs().max())
+
+
+def test_gradient_cross_on_device(device):
+    from symtorch.descriptors import gradient_cross
+    from symtorch.geodesics import GeodesicSolver
+
+    verts, faces, _ = mirror_mesh(2)
+    fields = GeodesicSolver(verts, faces).distances_from([5, 100])
+    pairs = torch.tensor([[0, 1]])
+    got = gradient_cross(verts.to(device), faces.to(device), fields.to(device), pairs.to(device))
+    assert got.device == torch.device(device)
+    torch.testing.assert_close(got.cpu(), gradient_cross(verts, faces, fields, pairs))

@@ -268,3 +268,54 @@ def test_watertight_orbits(shared_data, mesh_id):
     for s in res.symmetries:
         rate = float((dihedral_orbit_errors(solver, s.p2p, orbits) < eps).double().mean())
         assert rate >= 0.85, f"{mesh_id} {s.kind}: orbit rate {rate:.2f}"
+
+
+# ------------------------------------------------------------------------------------- devices
+def test_mean_shift_on_device(device):
+    g = torch.Generator().manual_seed(0)
+    centres = torch.tensor([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]], dtype=torch.float64)
+    X = torch.cat([c + 0.05 * torch.randn(20, 2, generator=g, dtype=torch.float64) for c in centres])
+    modes, labels, counts = mean_shift(X.to(device), bandwidth=0.5)
+    ref = mean_shift(X, bandwidth=0.5)
+    assert modes.device == labels.device == counts.device == device
+    torch.testing.assert_close(modes.cpu(), ref[0])
+    assert torch.equal(labels.cpu(), ref[1]) and torch.equal(counts.cpu(), ref[2])
+
+
+def test_batched_icp_on_device(device):
+    """Batched spectral ICP of perturbed quarter turns of the table: the CPU's matrices on ``device``."""
+    from symtorch.group_detect import batched_icp
+    from symtorch.maps import p2p_to_fmap
+    from symtorch.spectrum import laplacian_spectrum, band_boundary, solved_bands
+
+    v, f = shapes.table(3)
+    s = laplacian_spectrum(v, f, k=30)
+    bands = solved_bands(s.evals)
+    k0 = band_boundary(bands, 12)
+    bands0 = [b for b in bands if b.stop <= k0]
+    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, shapes.true_symmetries("table"))]
+    E = s.evecs[:, :k0]
+    C = torch.stack([p2p_to_fmap(p, E, s.mass) for p in true])
+    g = torch.Generator().manual_seed(0)
+    noisy = C + 0.05 * torch.randn(C.shape, generator=g, dtype=C.dtype)
+    src, tgt = torch.arange(0, len(v), 3), torch.arange(len(v))
+    ref = batched_icp(noisy, E[src], E[tgt], bands0, n_iter=3, chunk=4)
+    got = batched_icp(noisy.to(device), E[src].to(device), E[tgt].to(device), bands0, n_iter=3, chunk=4)
+    assert got.device == device and got.shape == C.shape
+    torch.testing.assert_close(got.cpu(), ref, atol=1e-8, rtol=0)
+    assert float((ref - C).norm(dim=(1, 2)).max()) < float((noisy - C).norm(dim=(1, 2)).min())
+
+
+def test_group_path_batched_stages_on_device(device):
+    """``device=``: the candidate stages run there; the same group, the result on the CPU spectrum's
+    device."""
+    v, f = shapes.table(SUB)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = detect_symmetries(v, f, mode="group", k_refine=40)
+        res = detect_symmetries(v, f, mode="group", k_refine=40, device=device)
+    assert res.group["name"] == ref.group["name"] == "C4v"
+    assert res.p2ps.device.type == "cpu"
+    # the same elements: each found map is one of the CPU run's maps on >= 95 % of the vertices
+    agree = (res.p2ps[:, None] == ref.p2ps[None]).float().mean(-1)  # [G, G]
+    assert bool((agree.max(1).values >= 0.95).all()), agree.max(1).values

@@ -489,3 +489,21 @@ def test_input_validation():
         identity_index(2 * torch.eye(3, dtype=torch.float64)[None])
     with pytest.warns(UserWarning, match="duplicates"):
         cayley_table(torch.eye(3, dtype=torch.float64).expand(2, 3, 3).contiguous(), tol=0.1)
+
+
+def test_group_algebra_on_device(d5h, device):
+    """Tables, orders, inverses, closure and the name from matrices on ``device``: as on CPU."""
+    mats, rev = d5h.mats.to(device), d5h.reversing.to(device)
+    cay = cayley_table(mats)
+    assert cay.table.device == mats.device
+    ref = cayley_table(d5h.mats)
+    assert torch.equal(cay.table.cpu(), ref.table)
+    assert torch.equal(element_orders(mats).cpu(), element_orders(d5h.mats))
+    assert torch.equal(inverses(cay.table).cpu(), inverses(ref.table))
+    assert check_group(cay.table).is_group
+    gens = mats[[d5h.idx(k=1), d5h.idx(s=1), d5h.idx(f=1)]]
+    cl = closure(gens)
+    assert len(cl.mats) == 20 and cl.mats.device == mats.device
+    assert identify_group(cay.table, rev) == "D5h"
+    p2p = d5h.p2p.to(device)
+    assert torch.equal(compose_p2p(p2p[3], p2p[7]).cpu(), d5h.p2p[3][d5h.p2p[7]])

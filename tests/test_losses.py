@@ -148,3 +148,34 @@ def test_p2p_errors():
     mask = torch.tensor([True, False, False, False, True])
     assert p2p_error(flipped, gt, dist, mask=mask) == 5
     assert p2p_error(flipped[None], gt[None], dist[None]).shape == (1,)
+
+
+def test_losses_on_device(device):
+    """Every loss on ``device``: its value there equals the CPU value, and it back-propagates."""
+    C = rand(2, K, K, seed=1)
+    C2, Cgt = rand(2, K, K, seed=2), rand(2, K, K, seed=5)
+    evals = rand(2, K, seed=3).abs().cumsum(-1)
+    S = reflections()
+    mask = torch.tensor([[True, True], [True, False]])
+    pos = torch.arange(6, dtype=F64)
+    dist = (pos[:, None] - pos[None, :]).abs()
+    sym = torch.stack([torch.arange(6), torch.arange(6).flip(0)])
+    gt = torch.tensor([0, 1, 2, 3, 4])
+    losses = {
+        "fmap": lambda c, d: fmap_loss(c, d(Cgt)),
+        "orthogonality": lambda c, d: orthogonality_loss(c),
+        "bijectivity": lambda c, d: bijectivity_loss(c, d(C2).mT),
+        "commutativity": lambda c, d: laplacian_commutativity_loss(c, d(evals), d(evals)),
+        "equivariance": lambda c, d: symmetry_equivariance_loss(c, d(S), d(S), mask_y=d(mask), match="best"),
+        "symmetric": lambda c, d: symmetric_fmap_loss(c, d(Cgt), d(S), mask=d(mask)),
+    }
+    for name, fn in losses.items():
+        c = C.to(device).requires_grad_()
+        val = fn(c, lambda t: t.to(device))
+        assert val.device == c.device, name
+        torch.testing.assert_close(val.cpu(), fn(C, lambda t: t), msg=name)
+        val.backward()
+        assert c.grad is not None and c.grad.device == c.device and torch.isfinite(c.grad).all(), name
+    err, elem = symmetric_p2p_error(sym[1][gt].to(device), gt.to(device), sym.to(device), dist.to(device))
+    assert err.device == torch.device(device) and float(err) == 0 and int(elem) == 1
+    assert float(p2p_error(sym[1][gt].to(device), gt.to(device), dist.to(device))) == pytest.approx((5 + 3 + 1 + 1 + 3) / 5)

@@ -147,3 +147,22 @@ def test_nearest_neighbors_among_is_the_best_candidate():
         assert int(got[q]) == int(c[(points[c] - queries[q]).norm(dim=1).argmin()])
     with pytest.raises(ValueError, match="groups has 299 entries for 300 queries"):
         nearest_neighbors_among(queries, points, cand, groups[:299])
+
+
+def test_maps_on_device(mirror, device):
+    """Round trips and nearest-neighbour searches on ``device``: the same answers as on CPU."""
+    s, K, perm = mirror
+    E, m = s.evecs[:, :K].to(device), s.mass.to(device)
+    C = p2p_to_fmap(perm.to(device), E, m)
+    assert C.device == E.device
+    torch.testing.assert_close(C.cpu(), p2p_to_fmap(perm, s.evecs[:, :K], s.mass))
+    assert torch.equal(fmap_to_p2p(C, E).cpu(), perm)
+    g = torch.Generator().manual_seed(0)
+    points = torch.randn(500, 8, generator=g, dtype=torch.float64)
+    queries = torch.randn(300, 8, generator=g, dtype=torch.float64)
+    cand = torch.stack([torch.randperm(500, generator=g)[:20] for _ in range(4)])
+    groups = torch.randint(0, 4, (300,), generator=g)
+    nn = nearest_neighbors(queries.to(device), points.to(device))
+    assert nn.device == torch.device(device) and torch.equal(nn.cpu(), nearest_neighbors(queries, points))
+    among = nearest_neighbors_among(queries.to(device), points.to(device), cand.to(device), groups.to(device))
+    assert torch.equal(among.cpu(), nearest_neighbors_among(queries, points, cand, groups))

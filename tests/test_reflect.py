@@ -192,3 +192,38 @@ def test_nearly_as_consistent_candidates_are_all_compared():
     assert n > 1 and len(one.info["trials"]) == 1 and len(every.info["trials"]) == n
     for r in (one, every):
         assert r.reflection is not None and r.reflection.score > 0.9
+
+
+def test_detect_with_a_spectrum_on_device(blob, device):
+    """A spectrum on ``device`` (as a GPU data pipeline holds it): the result comes back there, the
+    same as from the CPU spectrum."""
+    v, f, mirror = blob
+    spec = laplacian_spectrum(v, f, k=86)
+    ref = detect_symmetries(v, f, spectrum=spec, mode="reflection")
+    res = detect_symmetries(v, f, spectrum=spec.to(device), mode="reflection")
+    assert res.spectrum.evecs.device == torch.device(device)
+    assert [s.kind for s in res.symmetries] == ["identity", "reflection"]
+    for s, r in zip(res.symmetries, ref.symmetries):
+        assert s.C.device == s.p2p.device == torch.device(device)
+        assert torch.equal(s.p2p.cpu(), r.p2p)
+        torch.testing.assert_close(s.C.cpu(), r.C)
+    assert torch.equal(res.reflection.p2p.cpu(), mirror)
+    assert res.fmaps.device == res.p2ps.device == torch.device(device)
+
+
+def test_zoomout_symmetry_on_device(blob, device):
+    """The band-by-band upsampling on ``device`` gives the CPU's matrix."""
+    from symtorch.refine import zoomout_symmetry
+    from symtorch.spectrum import band_boundary, solved_bands
+
+    v, f, mirror = blob
+    s = laplacian_spectrum(v, f, k=40)
+    bands = solved_bands(s.evals)
+    k0, kf = band_boundary(bands, 6), band_boundary(bands, 30)
+    C0 = p2p_to_fmap(mirror, s.evecs[:, :k0], s.mass)
+    samples = farthest_point_sampling(v, 300)
+    ref = zoomout_symmetry(C0, s.evecs, s.mass, bands, kf, samples=samples, involution=True)
+    got = zoomout_symmetry(C0.to(device), s.evecs.to(device), s.mass.to(device), bands, kf,
+                           samples=samples.to(device), involution=True)
+    assert got.device == torch.device(device) and got.shape == (kf, kf)
+    torch.testing.assert_close(got.cpu(), ref, atol=1e-8, rtol=0)

@@ -218,3 +218,23 @@ def test_detect_symmetries_transform():
     assert torch.equal(out["sym_p2p"][0], torch.arange(V))
     assert G == 2, f"the mirror was not found: scores {out['sym_score'].tolist()}"
     assert (out["sym_p2p"][1] == mirror).double().mean() > 0.9
+
+
+@pytest.mark.parametrize("cls", [RandomSymmetry, RandomEigenSigns, RandomBandRotation])
+def test_augmentations_on_device(sym_sample, cls, device):
+    """A sample whose tensors live on ``device`` stays there, with the values the CPU gives."""
+    sample, _ = sym_sample
+    on_dev = {k: v.to(device) if torch.is_tensor(v) else v for k, v in sample.items()}
+    for seed in range(3):  # both elements of the group are drawn among the seeds
+        out = cls(generator=torch.Generator().manual_seed(seed))(on_dev)
+        ref = cls(generator=torch.Generator().manual_seed(seed))(sample)
+        for key, val in ref.items():
+            if torch.is_tensor(val):
+                assert out[key].device == torch.device(device), (cls.__name__, key)
+                torch.testing.assert_close(out[key].cpu(), val, msg=f"{cls.__name__} {key}")
+    # the group inverse (used for a map that is not a bijection) on the device too
+    rough = on_dev["sym_p2p"].clone()
+    rough[1, 0] = rough[1, 1]
+    out = apply_symmetry(dict(on_dev, sym_p2p=rough), 1)
+    assert out["corr"].device == torch.device(device)
+    assert torch.equal(out["corr"].cpu(), rough[1].cpu()[sample["corr"]])
