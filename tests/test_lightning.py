@@ -29,6 +29,7 @@ class TinyFmapNet(L.LightningModule):
     def __init__(self):
         super().__init__()
         self.lin = torch.nn.Linear(8, 8)
+        self.seen_devices = set()  # where the training steps' maps were computed
 
     def fmap(self, batch):
         def coefs(s):
@@ -41,6 +42,7 @@ class TinyFmapNet(L.LightningModule):
 
     def training_step(self, batch, _):
         C = self.fmap(batch)
+        self.seen_devices.add(C.device.type)
         sx, sy = batch["x"]["sym_fmap"].float(), batch["y"]["sym_fmap"].float()
         return (fmap_loss(C, batch["fmap_xy"].float()) + 0.1 * orthogonality_loss(C)
                 + 0.1 * symmetry_equivariance_loss(C, sx, sy))
@@ -53,15 +55,20 @@ class TinyFmapNet(L.LightningModule):
         return torch.optim.Adam(self.parameters(), lr=1e-3)
 
 
-def test_fast_dev_run(folder, tmp_path):
+def test_fast_dev_run(folder, tmp_path, device):
+    """A training and a validation step through ``lightning.Trainer``, on CPU and on a GPU: the
+    padded batches (``pad_collate``) reach the model on its device."""
     root, sym = folder
     dm = SymmetryDataModule(root, processed_dir=tmp_path / "cache", ground_truth="template", k=6,
                             n_hks=8, n_wks=0, symmetries=sym, augment_symmetry=True,
                             augment_signs=True, split=(3, 2, 0), batch_size=2, seed=1)
-    trainer = L.Trainer(fast_dev_run=True, accelerator="cpu", logger=False,
+    trainer = L.Trainer(fast_dev_run=True, accelerator="gpu" if device.type == "cuda" else "cpu", devices=1,
+                        logger=False,
                         enable_checkpointing=False, enable_progress_bar=False,
                         enable_model_summary=False)
-    trainer.fit(TinyFmapNet(), datamodule=dm)
+    model = TinyFmapNet()
+    trainer.fit(model, datamodule=dm)
+    assert model.seen_devices == {device.type}
     assert len(dm.train_set) == 6 and len(dm.val_set) == 2 and len(dm.test_set) == 0
     assert (tmp_path / "cache" / "meta.json").exists()
 
