@@ -45,7 +45,7 @@ def mean_shift(X: Tensor, bandwidth: float, n_iter: int = 50, tol: float = 1e-6,
         modes.append(Y[i])
     modes_t = torch.stack(modes)
     counts = torch.zeros(len(modes), dtype=X.dtype, device=X.device).index_add_(0, labels, w)
-    srt = torch.argsort(counts, descending=True)
+    srt = torch.sort(counts, descending=True, stable=True).indices  # ties keep density order, on any device
     relabel = torch.empty_like(srt)
     relabel[srt] = torch.arange(len(srt), device=X.device)
     return modes_t[srt], relabel[labels], counts[srt]

@@ -1,4 +1,5 @@
 """Reflective symmetry detection (symtorch.reflect, detect_symmetries(mode='reflection'))."""
+import inspect
 import json
 import math
 
@@ -189,7 +190,13 @@ def test_nearly_as_consistent_candidates_are_all_compared():
     one = detect_reflection(v, f, s, compare_ratio=0.0)  # stop at the first clear reflection
     every = detect_reflection(v, f, s, compare_ratio=math.inf)  # compare every candidate
     n = min(one.info["n_candidates"], 8)
-    assert n > 1 and len(one.info["trials"]) == 1 and len(every.info["trials"]) == n
+    assert n > 1 and len(every.info["trials"]) == n
+    # the first run stops right after its first clear reflection (which candidate that is depends on
+    # the platform's arithmetic: an identity-like collapse may come first)
+    params = inspect.signature(detect_reflection).parameters
+    vote, dist = params["early_vote"].default, params["early_distortion"].default
+    clear = [v < -vote and d < dist for v, d in one.info["trials"]]
+    assert clear[-1] and not any(clear[:-1]) and len(clear) < n, one.info["trials"]
     for r in (one, every):
         assert r.reflection is not None and r.reflection.score > 0.9
 
