@@ -234,3 +234,23 @@ def test_zoomout_symmetry_on_device(blob, device):
                            samples=samples.to(device), involution=True)
     assert got.device == torch.device(device) and got.shape == (kf, kf)
     torch.testing.assert_close(got.cpu(), ref, atol=1e-8, rtol=0)
+
+
+def test_involution_distortion_needs_no_solve_and_tracks_the_isometry_score(blob):
+    from symtorch.reflect import involution_distortion, isometry_score
+
+    v, f, mirror = blob
+    v = v / math.sqrt(GeodesicSolver(v, f).area)  # unit area: distortions in KLC units
+    solver = GeodesicSolver(v, f)
+    S = farthest_point_sampling(v, 24)
+    fields = solver.distances_from(S)  # [24, V]: the only solves
+    _, d_mirror, worst = involution_distortion(fields, S, mirror, return_worst=True)
+    assert d_mirror < 0.15 and worst < 0.3  # the heat method's own asymmetry, not the map's
+    # half the shape mirrored, the other half kept: no isometric involution
+    x = v[:, 0] - v[:, 0].mean()
+    half = torch.where(x > 0, mirror, torch.arange(len(v)))
+    _, d_half = involution_distortion(fields, S, half)
+    _, d_half_images = isometry_score(solver, half, S)
+    assert d_half > 0.5 and d_half == pytest.approx(d_half_images, rel=0.5)
+    # a map that moves every sample onto one point is no involution either
+    assert involution_distortion(fields, S, torch.zeros(len(v), dtype=torch.long))[1] > 0.5
