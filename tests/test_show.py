@@ -56,7 +56,7 @@ def test_cli_show(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 0, err
     assert png.stat().st_size < 300_000 and glb.stat().st_size > 0
-    assert "figure ->" in err and "group" in err
+    assert "figure ->" in err and "group Cs of order 2: identity, reflection" in err
 
 
 def test_cli_show_point_cloud_is_one_line(tmp_path, capsys):
