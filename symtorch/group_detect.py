@@ -195,27 +195,6 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
 
 
 # ---------------------------------------------------------------------------------- refinement
-def icp_symmetry(C0: Tensor, evecs: Tensor, bands: list[range], n_iter: int = 10,
-                 samples: Tensor | None = None) -> Tensor:
-    """Spectral ICP at fixed size (paper §4.1 step 3): NN map, then block Procrustes, ``n_iter`` times.
-
-    Args:
-        C0: [k, k]; evecs: [V, >=k]; bands: covering ``0..k-1``.
-
-    Returns:
-        [k, k] block-orthogonal.
-    """
-    k = C0.shape[-1]
-    S = torch.arange(evecs.shape[0]) if samples is None else samples
-    E = evecs[:, :k]
-    C = C0
-    for _ in range(n_iter):
-        p2p = nearest_neighbors(E[S] @ C, E)
-        # rows move as evecs[p2p] ≈ evecs @ C, i.e. C.T @ E[S].T ≈ E[p2p].T: block Procrustes, transposed
-        C = block_procrustes(E[S].mT, E[p2p].mT, bands).mT
-    return C
-
-
 def batched_icp(C: Tensor, E_src: Tensor, E_tgt: Tensor, bands: list[range], n_iter: int = 2,
                 chunk: int = 128) -> Tensor:
     """A few spectral ICP steps on many candidates at once (before clustering).
@@ -524,7 +503,8 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     def add(C0: Tensor) -> bool:
         """Refine a coarse candidate, verify it, and keep it unless it duplicates an element."""
         if refine == "icp":
-            C0 = icp_symmetry(C0, evecs[geo.samples], bands0)
+            E_s = evecs[geo.samples, :k0]  # paper §4.1 step 3: fixed-size spectral ICP on the samples
+            C0 = batched_icp(C0[None], E_s, E_s, bands0, n_iter=10)[0]
         else:
             C0 = _zoomout(geo, C0, bands0, k0)
         at = torch.cat([geo.points, geo.score_samples])

@@ -331,3 +331,19 @@ def test_group_path_batched_stages_on_device(device):
     # the same elements: each found map is one of the CPU run's maps on >= 95 % of the vertices
     agree = (res.p2ps[:, None] == ref.p2ps[None]).float().mean(-1)  # [G, G]
     assert bool((agree.max(1).values >= 0.95).all()), agree.max(1).values
+
+
+def test_fixed_size_icp_refinement_finds_the_same_group():
+    """refine='icp' (the paper's spectral ICP at a fixed size, through ``batched_icp``) instead of
+    the band-by-band upsampling: the table's C4v, every element a true symmetry."""
+    from symtorch.group_detect import detect_group
+    from symtorch.spectrum import laplacian_spectrum
+
+    v, f = shapes.table(SUB)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = detect_group(v, f, laplacian_spectrum(v, f, k=60), k=20, k_refine=40, refine="icp")
+    assert res.group["name"] == "C4v"
+    assert res.fmaps.shape[-1] == res.info["k0"]  # ICP keeps the coarse size
+    mats = shapes.true_symmetries("table")
+    _check_against_truth(res, v, f, shapes.symmetry_maps(v, mats), "table icp", mats)
