@@ -72,6 +72,7 @@ import torch
 from torch import Tensor
 
 from .cluster import mean_shift
+from .constraints import descriptor_coefficients, disk_coefficients
 from .descriptors import descriptors, hks
 from .eval import EPS_KLC
 from .geodesics import GeodesicSolver
@@ -87,7 +88,6 @@ from .spectrum import Spectrum, band_boundary, solved_bands
 
 log = logging.getLogger(__name__)
 
-_RADII = (0.5, 1.0, 2.0)  # geodesic disk radii of the constraints, in units of EPS_KLC
 
 
 # ------------------------------------------------------------------------------------ points
@@ -445,13 +445,8 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
         return trivial(False, "no candidate survived pruning")
     # 3. one batched Procrustes
     E0 = evecs[:, :k0]
-    Mx = E0 * mass[:, None]
-    radii = torch.tensor(_RADII, dtype=evecs.dtype) * EPS_KLC
-    disks = torch.exp(-(D_pts[:, None, :] / radii[None, :, None]).square())  # [n, R, V]
-    A_disk = (Mx.mT @ disks.reshape(-1, V).mT).reshape(k0, len(pts), len(_RADII))  # [k0, n, R]
-    A_disk = A_disk / A_disk.norm(dim=0, keepdim=True).clamp_min(1e-12)
-    A_desc = Mx.mT @ desc
-    A_desc = A_desc / A_desc.norm(dim=0, keepdim=True) / math.sqrt(desc.shape[1])
+    A_disk = disk_coefficients(E0, mass, D_pts).permute(2, 0, 1)  # [k0, n, R]
+    A_desc = descriptor_coefficients(E0, mass, desc)  # [k0, D]
     Pt, Qt = torch.as_tensor(P), torch.as_tensor(Q)
     Bn = len(P)
     # 1_{g(p)} ∘ g = 1_p: the functions (A) are disks at the targets q, their pull-backs (B) at p

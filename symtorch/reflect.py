@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from torch import Tensor
 
 from ._checks import to_numpy
+from .constraints import DISK_RADII, descriptor_coefficients, disk_coefficients
 from .descriptors import descriptors, gradient_cross, hks
 from .eval import EPS_KLC
 from .geodesics import GeodesicSolver, voronoi_cells
@@ -370,13 +371,9 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     # constraints: multi-scale geodesic disks around each paired extremum, plus descriptors
     bands0 = [b for b in bands if b.stop <= k0]
     E0 = evecs[:, :k0]
-    Mx = E0 * mass[:, None]
-    radii = torch.tensor([0.5, 1.0, 2.0], dtype=evecs.dtype) * EPS_KLC
-    disks = torch.exp(-(dist_ext[:, None, :] / radii[None, :, None]).square())  # [N, R, V]
-    A_disk = torch.einsum("vk,nrv->nrk", Mx, disks)  # [N, R, k0]
-    A_disk = A_disk / A_disk.norm(dim=-1, keepdim=True)
-    A_desc = Mx.mT @ desc
-    A_desc = A_desc / A_desc.norm(dim=0, keepdim=True) / math.sqrt(desc.shape[1])
+    A_disk = disk_coefficients(E0, mass, dist_ext)  # [N, R, k0]
+    A_desc = descriptor_coefficients(E0, mass, desc)  # [k0, D]
+    radii = DISK_RADII
     n_max = max(int((p >= 0).sum()) for p in perms)
     A = torch.zeros(len(perms), k0, n_max * len(radii) + desc.shape[1], dtype=evecs.dtype)
     B = torch.zeros_like(A)
