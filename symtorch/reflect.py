@@ -52,7 +52,8 @@ from .spectrum import Spectrum, band_boundary, solved_bands
 
 
 __all__ = ["heat_extrema", "seed_pairs", "extend_involution", "involution_candidates",
-           "detect_reflection", "isometry_score", "involution_distortion", "EPS_KLC"]
+           "detect_reflection", "isometry_score", "involution_distortion", "descriptor_gap",
+           "EPS_KLC"]
 
 
 def heat_extrema(evals: Tensor, evecs: Tensor, faces, solver: GeodesicSolver, n_extrema: int = 12,
@@ -245,6 +246,25 @@ def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor,
     return math.exp(-distortion ** 2), distortion
 
 
+def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
+    """How much a vertex map changes the isometry-invariant descriptors: an intrinsic symmetry keeps
+    them (exactly for an isometry), a map that only keeps geodesic distances on the whole may not
+    (a lopsided shape's near-reflection sends one bump onto a smooth patch).
+
+    gap = mass-weighted mean over vertices and columns of ``|z(x) - z(g(x))|``, with ``z`` the
+    log-descriptors standardised per column (units of each column's spread over the shape).
+    Measured: 0.00-0.21 for the detected reflections of 20 SCAPE, TOSCA, FAUST and TOSCA_Isometric
+    meshes, 0.70 for the best near-reflection of the code-built asymmetric shape.
+
+    Args:
+        desc: [V, D] positive descriptors (``descriptors``); p2p: [V]; mass: [V].
+    """
+    L = torch.log(desc.clamp_min(1e-12))
+    Z = (L - L.mean(0)) / L.std(0).clamp_min(1e-12)
+    per_vertex = (Z - Z[p2p]).abs().mean(1)
+    return float((mass * per_vertex).sum() / mass.sum())
+
+
 def vertex_normals(verts: Tensor, faces: Tensor) -> Tensor:
     """[V, 3] area-weighted unit vertex normals."""
     faces = torch.as_tensor(faces).long()
@@ -301,7 +321,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
                       select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
                       n_local: int = 64, w_guide: float = 1.0, compare_ratio: float = 2.0,
                       verify: str = "involution", n_iter_all: int = 0, step_refine: int = 4,
-                      timer=None) -> SymmetryResult:
+                      max_descriptor_gap: float = 0.4, timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
     Args:
@@ -315,6 +335,9 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
         max_worst: and no sample's mean geodesic distortion exceeds this (KLC units): a map that
             is right on most of the shape but wrong on one part is not a symmetry.
+        max_descriptor_gap: and the map changes the descriptors by less than this
+            (``descriptor_gap``: at most 0.21 measured on real reflections, 0.70 on the near-
+            reflection of a lopsided shape that keeps geodesic distances to 0.23 eps).
         select_vote: candidates voting below ``-select_vote`` are compared by geodesic distortion
             (``isometry_score`` on ``n_select_verify`` samples), the others only by their vote.
         early_vote, early_distortion: stop comparing candidates once one votes below
@@ -454,9 +477,11 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             score, distortion, worst = isometry_score(solver, p2p, samples[:n_verify], return_worst=True,
                                                       source_dist=sample_dist(n_verify))
         vote = float(orientation_vote(p2p, vt, normals, vote_samples))
+        gap = descriptor_gap(desc, p2p, mass)
         lap("verify")
-        ok = score >= min_score and vote < -max_vote and worst < max_worst
-        return Cf, p2p, score, ok, {"distortion": distortion, "worst_distortion": worst, "orientation": vote}
+        ok = score >= min_score and vote < -max_vote and worst < max_worst and gap < max_descriptor_gap
+        return Cf, p2p, score, ok, {"distortion": distortion, "worst_distortion": worst, "orientation": vote,
+                                    "descriptor_gap": gap}
 
     best, trials = select(False)
     info["trials"], info["chosen"] = trials, best[1]
