@@ -347,3 +347,16 @@ def test_fixed_size_icp_refinement_finds_the_same_group():
     assert res.fmaps.shape[-1] == res.info["k0"]  # ICP keeps the coarse size
     mats = shapes.true_symmetries("table")
     _check_against_truth(res, v, f, shapes.symmetry_maps(v, mats), "table icp", mats)
+
+
+@pytest.mark.parametrize("n_eigen", [50, 70, 86])
+def test_group_does_not_depend_on_the_spectrum_size(n_eigen):
+    """The descriptors (and so the candidate pruning) change with the number of eigenpairs solved;
+    the n-gon prism's D6h must not (its rotations were pruned with 50, 70 and 86 at desc_tol=0.25)."""
+    from symtorch.spectrum import laplacian_spectrum
+
+    v, f = shapes.ngon_prism(subdivisions=SUB)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = detect_symmetries(v, f, spectrum=laplacian_spectrum(v, f, k=n_eigen), mode="group", k_refine=40)
+    assert res.group["name"] == "D6h" and len(res.symmetries) == 24, (res.group["name"], res.info["n_candidates"])
