@@ -36,7 +36,7 @@ from symtorch.maps import p2p_to_fmap
 from symtorch.procrustes import block_procrustes
 from symtorch.refine import zoomout_symmetry
 from symtorch.sampling import farthest_point_sampling
-from symtorch.spectrum import band_boundary, laplacian_spectrum, solved_bands
+from symtorch.spectrum import band_boundary, bands_from_sizes, laplacian_spectrum, solved_bands
 
 BAND_SIZES = [1, 2, 1, 1, 1, 2, 2, 2, 1, 1, 1, 1, 1, 1, 1, 1]  # SCAPE mesh000, K = 20
 
@@ -58,18 +58,10 @@ def timed(fn, device: torch.device, repeat: int) -> float:
     return statistics.median(times)
 
 
-def _bands(sizes):
-    out, start = [], 0
-    for s in sizes:
-        out.append(range(start, start + s))
-        start += s
-    return out
-
-
 def cases(candidates: list[int]):
     """(name, shape note, build(device) -> zero-argument callable)."""
     g = torch.Generator().manual_seed(0)
-    bands = _bands(BAND_SIZES)
+    bands = bands_from_sizes(BAND_SIZES)
     K = bands[-1].stop
     for n in candidates:
         A = torch.randn(n, K, 104, generator=g, dtype=torch.float64)

@@ -29,7 +29,7 @@ import torch
 
 from symtorch.benchmarks import list_benchmark, load_mesh
 from symtorch.procrustes import block_procrustes
-from symtorch.spectrum import generalized_eigsh, laplacian_matrices, laplacian_spectrum
+from symtorch.spectrum import bands_from_sizes, generalized_eigsh, laplacian_matrices, laplacian_spectrum
 
 DEFAULT_MESHES = ["FAUST:tr_reg_000", "SCAPE:mesh000", "TOSCA:horse0", "TOSCA:cat0",
                   "TOSCA:victoria0", "TOSCA:david0"]
@@ -69,15 +69,12 @@ def bench_spectrum(specs: list[str], ks: list[int], repeat: int) -> None:
 
 
 def bench_procrustes(n: int, device: str, repeat: int, J: int = 104) -> None:
-    bands, start = [], 0
-    for s in BAND_SIZES:
-        bands.append(range(start, start + s))
-        start += s
-    K = start
+    bands = bands_from_sizes(BAND_SIZES)
+    K = bands[-1].stop
     g = torch.Generator().manual_seed(0)
     A = torch.randn(n, K, J, generator=g, dtype=torch.float64)
     B = torch.randn(n, K, J, generator=g, dtype=torch.float64)
-    print(f"\n| dtype | device | candidates | K | J | band sizes | time (s) | candidates / s |")
+    print("\n| dtype | device | candidates | K | J | band sizes | time (s) | candidates / s |")
     print("|---|---|---:|---:|---:|---|---:|---:|")
     for dtype in (torch.float32, torch.float64):
         a, b = A.to(device, dtype), B.to(device, dtype)

@@ -261,6 +261,15 @@ def eigen_bands(evals, rel_gap: float = 0.3, window: int = 4) -> list[range]:
     return bands
 
 
+def bands_from_sizes(sizes) -> list[range]:
+    """Consecutive index ranges of the given sizes: ``[1, 2, 1] -> [range(0, 1), range(1, 3), range(3, 4)]``."""
+    bands, start = [], 0
+    for n in sizes:
+        bands.append(range(start, start + int(n)))
+        start += int(n)
+    return bands
+
+
 def solved_bands(evals) -> list[range]:
     """``eigen_bands(evals)`` without the last band, which the eigensolve may have cut (kept when it
     is the only one): the bands a symmetry matrix can be block-diagonal over."""

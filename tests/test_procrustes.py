@@ -6,6 +6,7 @@ import torch
 
 from symtorch.procrustes import (block_mask, block_procrustes, block_project, nearest_orthogonal,
                                  procrustes_rotation)
+from symtorch.spectrum import bands_from_sizes
 
 DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.is_available(),
                                                                 reason="no CUDA device"))]
@@ -16,12 +17,7 @@ TOL = {torch.float32: dict(atol=2e-4, rtol=0), torch.float64: dict(atol=1e-10, r
 SIZES = [1, 1, 2, 1, 3, 1, 2, 2, 1, 1, 2, 3]
 
 
-def make_bands(sizes):
-    bands, start = [], 0
-    for s in sizes:
-        bands.append(range(start, start + s))
-        start += s
-    return bands
+make_bands = bands_from_sizes
 
 
 def random_orthogonal(*shape_n, generator) -> torch.Tensor:

@@ -17,8 +17,8 @@ import torch
 import symtorch.spectrum as spectrum_mod
 from symtorch._checks import face_areas
 from symtorch.shapes import icosphere, mirror_blob, polar_prism, polar_prism_symmetries, symmetry_maps
-from symtorch.spectrum import (band_boundary, band_index, eigen_bands, generalized_eigsh,
-                               laplacian_matrices, laplacian_spectrum)
+from symtorch.spectrum import (band_boundary, band_index, bands_from_sizes, eigen_bands,
+                               generalized_eigsh, laplacian_matrices, laplacian_spectrum)
 
 # Prism heights (radius 1) at which the first 21 eigenvalues have no *accidental* near-degeneracy:
 # every gap between distinct eigenvalues is > 0.39 of the local mean spacing (scanned over heights
@@ -390,3 +390,10 @@ def test_solved_bands_drop_the_last_band_unless_it_is_the_only_one():
     assert solved_bands(evals) == eigen_bands(evals)[:-1]
     one = torch.tensor([1.0, 1.0], dtype=torch.float64)
     assert solved_bands(one) == eigen_bands(one) and len(eigen_bands(one)) == 1
+
+
+def test_bands_from_sizes():
+    assert bands_from_sizes([1, 2, 1]) == [range(0, 1), range(1, 3), range(3, 4)]
+    assert bands_from_sizes([]) == []
+    bands = eigen_bands([0.0, 1.0, 1.0, 2.0])
+    assert bands_from_sizes([len(b) for b in bands]) == bands
