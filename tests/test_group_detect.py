@@ -360,3 +360,16 @@ def test_group_does_not_depend_on_the_spectrum_size(n_eigen):
         warnings.simplefilter("ignore")
         res = detect_symmetries(v, f, spectrum=laplacian_spectrum(v, f, k=n_eigen), mode="group", k_refine=40)
     assert res.group["name"] == "D6h" and len(res.symmetries) == 24, (res.group["name"], res.info["n_candidates"])
+
+
+def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
+    """Watertight 152 (C2v: two mirrors and a half turn, all irreducible representations 1-D, so no
+    repeated eigenvalues): the reflection path sees three equally consistent involutions of its
+    extrema and the automatic mode asks the group path, which finds C2v."""
+    from symtorch.benchmarks import load_mesh
+
+    v, f = load_mesh(shared_data / "bim_scb_benchmark" / "Watertight" / "Meshes" / "152.off")
+    res = detect_symmetries(v, f)
+    assert res.group["name"] == "C2v" and len(res.symmetries) == 4, res.info.get("group_path")
+    assert sorted(s.kind for s in res.symmetries) == ["identity", "reflection", "reflection", "rotation"]
+    assert detect_symmetries(v, f, group_tol=0).group["name"] == "Cs"  # the reflection path alone
