@@ -180,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--json", action="store_true", help="print JSON instead of a table")
     i.set_defaults(func=_cmd_info)
 
-    for register in _EXTRA_COMMANDS:
+    for register in _register_optional():  # imported here: those modules import this one
         register(sub)
     return p
 
@@ -198,11 +198,7 @@ def _register_optional():
     return regs
 
 
-_EXTRA_COMMANDS: list = []
-
-
 def main(argv=None) -> int:
-    _EXTRA_COMMANDS[:] = _register_optional()
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
