@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from .eval import EPS_KLC
+from .groups import _subtable, check_group
 
 log = logging.getLogger(__name__)
 
@@ -45,13 +46,13 @@ def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[
     return idx.numpy(), (best / EPS_KLC).numpy()
 
 
-def _is_group(T: np.ndarray) -> bool:
-    """Whether ``T [G, G]`` is a group table: a Latin square (a quasigroup) that is associative."""
-    G = T.shape[0]
-    ar = np.arange(G)
-    if (T < 0).any() or not ((np.sort(T, 0) == ar[:, None]).all() and (np.sort(T, 1) == ar[None]).all()):
+def _forms_group(T: np.ndarray, idx: list[int]) -> bool:
+    """Whether the elements ``idx`` of the product table ``T`` form a group by themselves."""
+    try:
+        sub = _subtable(T, np.asarray(idx))
+    except ValueError:  # a product falls outside the set
         return False
-    return bool((T[T[:, :, None], ar[None, None, :]] == T[ar[:, None, None], T[None, :, :]]).all())
+    return check_group(torch.as_tensor(sub)).is_group
 
 
 def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
@@ -67,7 +68,6 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     """
     T, gap = map_table(p2ps, verts_unit, samples)
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
-    G = len(p2ps)
     ok = gap <= tol
     x = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
     same = ((x[:, None] - x[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
@@ -86,15 +86,9 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
             if not new:
                 break
             trial += new
-        if trial is not None:
-            lookup = np.full(G, -1)
-            lookup[trial] = np.arange(len(trial))
-            if _is_group(lookup[T[np.ix_(trial, trial)]]):
-                group = trial
-    idx = np.asarray(group)
-    lookup = np.full(G, -1)
-    lookup[idx] = np.arange(len(idx))
-    return group, torch.as_tensor(lookup[T[np.ix_(idx, idx)]], dtype=torch.long)
+        if trial is not None and _forms_group(T, trial):
+            group = trial
+    return group, torch.as_tensor(_subtable(T, np.asarray(group)), dtype=torch.long)
 
 
 def consistent_orientation(table: Tensor, scores) -> np.ndarray:

@@ -184,9 +184,18 @@ def _categorical(G: int):
     return ListedColormap([base(i % base.N) for i in range(max(G, 1))])
 
 
+def _colour(verts, faces, p2ps, source, colour) -> tuple[np.ndarray, int]:
+    """(f, its source): ``colour`` as given (source: where it is 0), else solved from ``source``."""
+    if colour is not None:
+        f = np.asarray(colour, dtype=np.float64)
+        return f, int(np.argmin(f)) if source is None else source
+    source = source_vertex(verts, p2ps) if source is None else source
+    return colour_function(verts, faces, source), source
+
+
 def render_figure(verts, faces, p2ps, kinds, orders, scores, table, *, title: str = "",
                   max_faces: int = 30000, panel_inches: float = 2.6, dpi: int = 80,
-                  source: int | None = None):
+                  source: int | None = None, colour: np.ndarray | None = None):
     """The figure: ``f``, then ``f∘g`` for each symmetry, then the group table.
 
     Args:
@@ -194,6 +203,8 @@ def render_figure(verts, faces, p2ps, kinds, orders, scores, table, *, title: st
         kinds, orders, scores: per element (``SymmetryResult.symmetries``).
         table: [G, G] group table (``table[a, b] = a∘b``), or None.
         source: the vertex ``f`` is the distance from; default :func:`source_vertex`.
+        colour: [V] ``f`` itself when already computed (:func:`colour_function`); the source
+            marked is then its minimum unless ``source`` is given.
 
     Returns:
         a matplotlib ``Figure`` (Agg; the caller saves it).
@@ -204,8 +215,7 @@ def render_figure(verts, faces, p2ps, kinds, orders, scores, table, *, title: st
     from matplotlib.figure import Figure
 
     verts, faces, p2ps = np.asarray(verts, float), np.asarray(faces), np.asarray(p2ps)
-    source = source_vertex(verts, p2ps) if source is None else source
-    f = colour_function(verts, faces, source)
+    f, source = _colour(verts, faces, p2ps, source, colour)
     R = _frame(verts)
     dv, df, labels = verts, faces, None
     if len(faces) > max_faces:
@@ -252,14 +262,15 @@ def save_png(fig, path: str, colours: int = 128) -> None:
     _write_atomic(path, out.getvalue())
 
 
-def export_glb(path: str, verts, faces, p2ps, names: list[str], source: int | None = None) -> None:
-    """Write the colourings (``f`` and each ``f∘g``) as vertex-coloured meshes side by side, GLB."""
+def export_glb(path: str, verts, faces, p2ps, names: list[str], source: int | None = None,
+               colour: np.ndarray | None = None) -> None:
+    """Write the colourings (``f`` and each ``f∘g``) as vertex-coloured meshes side by side, GLB
+    (``source``, ``colour`` as in :func:`render_figure`)."""
     import matplotlib
     import trimesh
 
     verts, faces, p2ps = np.asarray(verts, float), np.asarray(faces), np.asarray(p2ps)
-    source = source_vertex(verts, p2ps) if source is None else source
-    f = colour_function(verts, faces, source)
+    f, _ = _colour(verts, faces, p2ps, source, colour)
     cmap = matplotlib.colormaps["turbo"]
     step = 1.2 * float(np.ptp(verts[:, 0]))
     scene = trimesh.Scene()
@@ -312,15 +323,16 @@ def _cmd_show(args) -> int:
         stem = label.split(":", 1)[1] if label.startswith("demo:") else \
             os.path.splitext(os.path.basename(label))[0]
         out = f"{stem}_symmetries.png"
-    source = source_vertex(np.asarray(verts, float), p2ps)
+    colour = colour_function(np.asarray(verts, float), np.asarray(faces),
+                             source_vertex(np.asarray(verts, float), p2ps))  # once for both outputs
     if out is not None:
-        fig = render_figure(verts, faces, p2ps, kinds, orders, scores, table, source=source,
+        fig = render_figure(verts, faces, p2ps, kinds, orders, scores, table, colour=colour,
                             title=f"{shown}: {group} of order {len(kinds)}", dpi=args.dpi,
                             max_faces=args.max_faces)
         save_png(fig, out)
         _progress(f"figure -> {out} ({os.path.getsize(out) // 1024} KB)")
     if args.glb is not None:
-        export_glb(args.glb, verts, faces, p2ps, element_labels(kinds, orders), source=source)
+        export_glb(args.glb, verts, faces, p2ps, element_labels(kinds, orders), colour=colour)
         _progress(f"coloured meshes -> {args.glb}")
     return 0
 

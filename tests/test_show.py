@@ -66,3 +66,19 @@ def test_cli_show_point_cloud_is_one_line(tmp_path, capsys):
     rc = cli.main(["show", str(tmp_path / "pc.off"), "--out", str(tmp_path / "x.png")])
     err = capsys.readouterr().err
     assert rc == 2 and "is a point cloud" in err and "Traceback" not in err
+
+
+def test_a_precomputed_colour_gives_the_same_output(tmp_path):
+    """``show`` solves f once for the PNG and the GLB: passing it equals passing its source."""
+    import trimesh
+
+    verts, faces = shapes.mirror_blob(2)
+    mirror = shapes.symmetry_maps(verts, shapes.true_symmetries("mirror_blob"))[1]
+    p2ps = np.stack([np.arange(len(verts)), mirror])
+    s = source_vertex(verts, p2ps)
+    export_glb(str(tmp_path / "a.glb"), verts, faces, p2ps, ["e", "s1"], source=s)
+    export_glb(str(tmp_path / "b.glb"), verts, faces, p2ps, ["e", "s1"], colour=colour_function(verts, faces, s))
+    a, b = trimesh.load(tmp_path / "a.glb"), trimesh.load(tmp_path / "b.glb")
+    for name in ("f_e", "f_s1"):
+        np.testing.assert_array_equal(a.geometry[name].visual.vertex_colors, b.geometry[name].visual.vertex_colors)
+    assert not np.array_equal(a.geometry["f_e"].visual.vertex_colors, a.geometry["f_s1"].visual.vertex_colors)
