@@ -52,7 +52,7 @@ import torch
 
 from .io import _one_line, atomic_write
 from .data.dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
-                           file_stamp, process_file, read_meta, write_meta)
+                           cache_is_current, file_stamp, process_file, read_meta, write_meta)
 from .data.transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                               NormalizeArea)
 
@@ -314,10 +314,8 @@ class _Recorder:
 
 
 def _is_done(item: _Item, meta: dict | None, key: dict) -> bool:
-    # the test of MeshDataset.process: same key, same file stamp, cache file present
     try:
-        return (meta is not None and meta.get("key") == key and item.out.exists()
-                and meta.get("files", {}).get(item.name) == file_stamp(item.raw))
+        return cache_is_current(meta, key, item.name, item.raw, item.out)  # MeshDataset's rule
     except OSError:  # the mesh vanished: processing it will say so
         return False
 

@@ -106,6 +106,13 @@ def file_stamp(path: Path) -> list[int]:
     return [st.st_size, st.st_mtime_ns]
 
 
+def cache_is_current(meta: dict | None, key: dict, name: str, raw: Path, out: Path) -> bool:
+    """Whether ``out`` holds ``raw`` processed under ``key``: the folder's ``meta`` has the same key
+    and ``raw``'s file stamp, and ``out`` exists (the one staleness rule of the caches)."""
+    return (meta is not None and meta.get("key") == key and out.exists()
+            and meta.get("files", {}).get(name) == file_stamp(raw))
+
+
 def cache_key(pre_transform: Callable[[dict], dict] | None, dtype: torch.dtype,
               ground_truth: str | Callable[[Path], dict] | None) -> dict:
     """What a cached sample depends on besides its mesh file (``meta.json["key"]``)."""
@@ -242,9 +249,8 @@ class MeshDataset(Dataset):
             meta = {"key": key, "files": {}}
         todo = []
         for name, raw, out in zip(self.names, self.raw_paths, self.processed_paths):
-            stamp = file_stamp(raw)
-            if meta["files"].get(name) != stamp or not out.exists():
-                todo.append((name, raw, out, stamp))
+            if not cache_is_current(meta, key, name, raw, out):
+                todo.append((name, raw, out, file_stamp(raw)))
         for i, (name, raw, out, stamp) in enumerate(todo):
             t0 = time.perf_counter()
             process_file(raw, out, self.pre_transform, self.dtype, self.ground_truth)
