@@ -81,7 +81,8 @@ def laplacian_matrices(verts, faces=None, *, n_neighbors: int = 30,
 
 
 def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float = -1e-3,
-                      tol: float = 1e-8, retries: int = 3) -> tuple[np.ndarray, np.ndarray]:
+                      tol: float = 1e-8, retries: int = 3,
+                      check_missing: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` smallest pairs of ``W phi = lambda M phi`` by shift-invert Lanczos.
 
     One sparse LU factorisation of ``W - shift * M`` (``shift < 0`` keeps it positive definite, since W
@@ -92,7 +93,11 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     space holds one direction per eigenspace, so ARPACK can return 3 of a 5-fold eigenvalue and fill
     up with larger ones. After the solve, a deflated probe (:func:`_missing_pairs`, reusing the
     factorisation) looks for eigenpairs below the largest one found that the basis lacks, and adds
-    them until there are none.
+    them until there are none. ``check_missing=None`` runs that probe only when the solve returned an
+    exactly repeated eigenvalue (relative gap < 1e-6): every miss seen on 50 code-built symmetric
+    meshes came with several such repeats among the pairs found, while scanned meshes (SCAPE, TOSCA,
+    FAUST, TOSCA_Isometric: smallest relative gap 7.6e-5) have none and would pay ~0.3 s for nothing
+    (40 % of a 12.5K-vertex solve). True / False: always / never.
 
     Returns:
         (evals [k] ascending, evecs [V, k] mass-orthonormal) numpy float64.
@@ -117,7 +122,8 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
             log.warning("eigensolve failed with shift %.1e (%s); retrying", sigma, err)
     else:
         raise RuntimeError(f"generalized eigensolve failed after {retries + 1} shifts: {last_err}")
-    for _ in range(k):  # each round adds at least one missing pair, or stops
+    for _ in range(k if check_missing or (check_missing is None and _has_repeats(evals)) else 0):
+        # each round adds at least one missing pair, or stops
         try:
             lam, phi = _missing_pairs(lu, mass, sigma, evecs, float(evals.max()), tol, v0)
         except (RuntimeError, sla.ArpackError, sla.ArpackNoConvergence) as err:
@@ -137,6 +143,12 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     flip = np.sign(evecs[np.abs(evecs).argmax(axis=0), np.arange(k)])
     evecs *= np.where(flip == 0, 1.0, flip)[None, :]
     return np.maximum(evals, 0.0), evecs
+
+
+def _has_repeats(evals: np.ndarray, rel_tol: float = 1e-6) -> bool:
+    """Whether two of the non-zero eigenvalues agree to ``rel_tol`` (an exact multiplicity)."""
+    lam = np.sort(evals[evals > 1e-9 * max(float(np.max(evals)), 1e-300)])
+    return bool(lam.size > 1 and (np.diff(lam) / lam[1:] < rel_tol).any())
 
 
 def _missing_pairs(lu, mass: np.ndarray, sigma: float, evecs: np.ndarray, lam_max: float,
