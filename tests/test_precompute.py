@@ -201,6 +201,7 @@ def test_open_dataset_needs_the_default_pre_transform(tmp_path):
     make_tree(tmp_path / "src", n=2)
     precompute(tmp_path / "src", tmp_path / "out", pre_transform=Compose([NormalizeArea()]),
                progress=False)
+    assert json.loads((tmp_path / "out" / SETTINGS).read_text())["default_pre_transform"] is False
     with pytest.raises(ValueError, match="custom pre_transform"):
         open_dataset(tmp_path / "src", tmp_path / "out")
     with pytest.raises(FileNotFoundError, match="not a symtorch precompute folder"):
@@ -212,7 +213,7 @@ def test_k_refine_reaches_the_detector_and_the_settings(tmp_path, capsys):
     assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "out"), "--k", "40",
                      "--k-refine", "20", "--quiet"]) == 0
     s = json.loads((tmp_path / "out" / SETTINGS).read_text())
-    assert s["k_refine"] == 20 and s["default_pre_transform"]
+    assert s["k_refine"] == 20 and s["default_pre_transform"] is True  # the CLI built the default
     # the detector's settings are part of the cache key: another k_refine is another cache
     assert "k_refine=20" in s["key"]["pre_transform"]
     assert repr(default_pre_transform(40, True, 0, 20)) != repr(default_pre_transform(40, True, 0))
