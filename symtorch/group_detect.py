@@ -84,7 +84,7 @@ from .maps import nearest_neighbors, nearest_neighbors_among, p2p_to_fmap
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
-from .spectrum import Spectrum, band_boundary, solved_bands
+from .spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
 
 log = logging.getLogger(__name__)
 
@@ -282,6 +282,17 @@ class _Geometry:
 
 
 # ------------------------------------------------------------------------------------ detection
+def _at_most(spectrum: Spectrum, n: int) -> Spectrum:
+    """The spectrum cut at the band end nearest ``n`` (unchanged when it has no more)."""
+    K = spectrum.evals.shape[0]
+    if K <= n:
+        return spectrum
+    end = band_boundary(eigen_bands(spectrum.evals), n)
+    if end >= K:
+        return spectrum
+    return Spectrum(spectrum.evals[:end], spectrum.evecs[:, :end], spectrum.mass, spectrum.scale)
+
+
 def _coarse_bands(bands: list[range], k: int) -> tuple[list[range], int]:
     k0 = band_boundary(bands, k)
     return [b for b in bands if b.stop <= k0], k0
@@ -344,7 +355,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
                  bandwidth: float = 0.6, n_samples: int = 1000, max_distortion: float = 0.25,
                  refine: str = "zoomout", max_modes: int = 64, desc_tol: float = 0.6, n_icp: int = 3,
                  max_candidates: int = 400, device: torch.device | str | None = None,
-                 timer=None) -> SymmetryResult:
+                 n_eigen: int = 60, timer=None) -> SymmetryResult:
     """Every symmetry of a mesh as a group (ALGORITHM §5); see the module docstring for the steps.
 
     Args:
@@ -369,6 +380,10 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
             any of those spectrum sizes (octopus meshes +0.5-1 s: more candidates).
         device: where the batched candidate stages run (block Procrustes, batched ICP, mean shift);
             default CPU. Everything else runs on CPU, and the result is on CPU.
+        n_eigen: the eigenpairs used (the spectrum is cut at the band end nearest this): the
+            descriptors, and so the candidate pruning, change with the number of eigenpairs; the
+            n-gon prism gave D2h for D6h from 110 eigenpairs (the reflection path's default
+            spectrum) and from 50, 70, 86 at the old ``desc_tol`` 0.25.
         timer: optional ``detect._Timer``.
 
     Returns:
@@ -376,7 +391,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     """
     lap = timer.lap if timer is not None else (lambda name: None)
     dev = torch.device("cpu") if device is None else torch.device(device)
-    spectrum = spectrum.to("cpu")
+    spectrum = _at_most(spectrum.to("cpu"), n_eigen)
     evals, evecs, mass = spectrum.evals, spectrum.evecs, spectrum.mass
     V = evecs.shape[0]
     bands = solved_bands(evals)

@@ -314,13 +314,13 @@ def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tenso
     return vote.sum((-2, -1)) / ok.sum((-2, -1)).clamp_min(1)
 
 
-def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 60,
+def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: int = 6, k_refine: int = 100,
                       k_select: int = 30, n_samples: int = 2000, n_extrema: int = 12, nms_radius: float = 2.0,
                       n_candidates: int = 8, block_refine: bool = False, min_score: float = 0.5,
                       max_vote: float = 0.2, max_worst: float = 1.5, early_vote: float = 0.6, early_distortion: float = 0.25,
                       select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
                       n_local: int = 64, w_guide: float = 1.0, compare_ratio: float = 2.0,
-                      verify: str = "involution", n_iter_all: int = 0, step_refine: int = 4,
+                      verify: str = "involution", n_iter_all: int = 0, step_refine: int = 12,
                       max_descriptor_gap: float = 0.4, timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
