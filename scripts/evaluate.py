@@ -51,11 +51,11 @@ def pick_symmetry(result):
 
 
 def run_symtorch(verts: np.ndarray, faces: np.ndarray, mode: str = "auto",
-                 k_refine: int = 60) -> tuple[np.ndarray, str]:
+                 k_refine: int | None = None) -> tuple[np.ndarray, str]:
     import symtorch
 
-    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode,
-                                        k_refine=k_refine)
+    kw = {} if k_refine is None else {"k_refine": k_refine}  # None: the detector's default
+    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode, **kw)
     sym = pick_symmetry(result)
     if sym is None:
         return np.arange(len(verts)), "none"
@@ -69,7 +69,7 @@ def run_pyfm(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
 
 
 def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,
-                  mode: str = "auto", k_refine: int = 60) -> dict | None:
+                  mode: str = "auto", k_refine: int | None = None) -> dict | None:
     try:
         gt = load_ground_truth(dataset, name)
     except FileNotFoundError:
@@ -103,8 +103,9 @@ def main(argv=None) -> int:
     parser.add_argument("--method", default="symtorch", choices=["symtorch", "pyfm"])
     parser.add_argument("--mode", default="auto", choices=["auto", "reflection", "group"],
                         help="detect_symmetries mode (symtorch method)")
-    parser.add_argument("--k-refine", type=int, default=60,
-                        help="detect_symmetries k_refine, the final basis size (symtorch method)")
+    parser.add_argument("--k-refine", type=int, default=None,
+                        help="detect_symmetries k_refine, the final basis size (symtorch method; "
+                             "default the detector's)")
     parser.add_argument("--limit", type=int, default=None, help="first N meshes only")
     parser.add_argument("--names", nargs="*", default=None, help="only these meshes")
     parser.add_argument("--max-pairs", type=int, default=1000,
