@@ -109,10 +109,13 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
     timer.lap("spectrum")
     from .group_detect import detect_group, has_multiplicities, with_group
     from .reflect import detect_reflection
+    def group_path():
+        return detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
+                            timer=timer, device=batch_device).to(out_device)
+
     grouped = None
     if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
-        grouped = detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                               timer=timer, device=batch_device).to(out_device)
+        grouped = group_path()
         if mode == "group" or grouped.continuous or grouped.group["order"] > 2:
             return grouped
     reflected = detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
@@ -124,8 +127,7 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
         # irreducible representations are all 1-D (C2v, D2h) hides from the spectrum; ask the group path
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")
-            grouped = detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                                   timer=timer, device=batch_device).to(out_device)
+            grouped = group_path()
         result.info["group_path"] = {"name": grouped.group["name"], "order": grouped.group["order"]}
         result.timings.update(timer.timings)  # the second opinion's stages count too
     if grouped is not None and grouped.group["order"] > result.group["order"]:

@@ -89,7 +89,6 @@ from .spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
 log = logging.getLogger(__name__)
 
 
-
 # ------------------------------------------------------------------------------------ points
 def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
                      nms_radius: float = 1.0, scales=(1.0, 0.1, 0.02), per_scale: int = 40) -> np.ndarray:

@@ -39,7 +39,7 @@ from scipy.spatial import cKDTree
 from torch import Tensor
 
 from ._checks import to_numpy
-from .constraints import DISK_RADII, descriptor_coefficients, disk_coefficients
+from .constraints import descriptor_coefficients, disk_coefficients
 from .descriptors import descriptors, gradient_cross, hks
 from .eval import EPS_KLC
 from .geodesics import GeodesicSolver, voronoi_cells
@@ -396,17 +396,17 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     E0 = evecs[:, :k0]
     A_disk = disk_coefficients(E0, mass, dist_ext)  # [N, R, k0]
     A_desc = descriptor_coefficients(E0, mass, desc)  # [k0, D]
-    radii = DISK_RADII
+    n_radii = A_disk.shape[1]
     n_max = max(int((p >= 0).sum()) for p in perms)
-    A = torch.zeros(len(perms), k0, n_max * len(radii) + desc.shape[1], dtype=evecs.dtype)
+    A = torch.zeros(len(perms), k0, n_max * n_radii + desc.shape[1], dtype=evecs.dtype)
     B = torch.zeros_like(A)
     for c, perm in enumerate(perms):
         src = np.flatnonzero(perm >= 0)
         # 1_{g(a)} ∘ g = 1_a: the disk at the image goes to F, the disk at the point to G
-        A[c, :, : len(src) * len(radii)] = A_disk[perm[src]].reshape(-1, k0).mT
-        B[c, :, : len(src) * len(radii)] = A_disk[src].reshape(-1, k0).mT
-        A[c, :, n_max * len(radii):] = A_desc
-        B[c, :, n_max * len(radii):] = A_desc
+        A[c, :, : len(src) * n_radii] = A_disk[perm[src]].reshape(-1, k0).mT
+        B[c, :, : len(src) * n_radii] = A_disk[src].reshape(-1, k0).mT
+        A[c, :, n_max * n_radii:] = A_desc
+        B[c, :, n_max * n_radii:] = A_desc
     C0 = block_procrustes(A, B, bands0)  # [P, k0, k0]
     lap("procrustes")
     samples = farthest_point_sampling(verts_unit, min(n_samples, V))
@@ -428,12 +428,13 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         D = 0.5 * (D + D.mT)
         return D.fill_diagonal_(0.0)
 
-
     def select(guided: bool):
         """Upsample the candidates to ``ks``; the best one (see below) and the trials."""
-        best, trials = None, []
+        best, trials, guides = None, [], {}
         for c, kc in itertools.product(range(len(perms)), starts):
-            guide = _orientation_guide(verts_unit, faces, dist_ext, perms[c], w_guide) if guided else None
+            if guided and c not in guides:  # one per candidate, whatever the coarse start
+                guides[c] = _orientation_guide(verts_unit, faces, dist_ext, perms[c], w_guide)
+            guide = guides.get(c)
             Cs = zoomout_symmetry(C0[c, :kc, :kc], evecs, mass, bands, ks, samples=sel, involution=True,
                                   block=block_refine, targets=samples, guide=guide)
             p2p_v = samples[nearest_neighbors(evecs[vote_samples, :ks] @ Cs, evecs[samples, :ks])]

@@ -27,3 +27,11 @@ DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.i
 def device(request):
     """Each torch device the library runs on: CPU, and CUDA where a GPU is present."""
     return torch.device("cuda:0" if request.param == "cuda" else request.param)  # as tensors report it
+
+
+@pytest.fixture
+def cuda_device():
+    """A CUDA device, for tests that only compare a GPU result with the CPU one (skipped without)."""
+    if not torch.cuda.is_available():
+        pytest.skip("no CUDA device")
+    return torch.device("cuda:0")

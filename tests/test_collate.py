@@ -84,8 +84,9 @@ def test_dataloader_with_two_workers(tmp_path):
     assert seen == 6
 
 
-def test_pad_collate_on_device(device):
+def test_pad_collate_on_device(cuda_device):
     """Samples already on ``device`` (a GPU pre-transform) collate there, masks included."""
+    device = cuda_device  # on CPU the comparison would be with itself
     a, b = shape(1, with_mirror=False), shape(2)
     move = (lambda s: {k: v.to(device) if torch.is_tensor(v) else v for k, v in s.items()})
     batch, ref = pad_collate([move(a), move(b)]), pad_collate([a, b])

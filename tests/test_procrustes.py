@@ -7,9 +7,8 @@ import torch
 from symtorch.procrustes import (block_mask, block_procrustes, block_project, nearest_orthogonal,
                                  procrustes_rotation)
 from symtorch.spectrum import bands_from_sizes
+from conftest import DEVICES  # CPU, and CUDA where present
 
-DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.is_available(),
-                                                                reason="no CUDA device"))]
 DTYPES = [torch.float32, torch.float64]
 TOL = {torch.float32: dict(atol=2e-4, rtol=0), torch.float64: dict(atol=1e-10, rtol=0)}
 

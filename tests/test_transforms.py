@@ -221,8 +221,9 @@ def test_detect_symmetries_transform():
 
 
 @pytest.mark.parametrize("cls", [RandomSymmetry, RandomEigenSigns, RandomBandRotation])
-def test_augmentations_on_device(sym_sample, cls, device):
+def test_augmentations_on_device(sym_sample, cls, cuda_device):
     """A sample whose tensors live on ``device`` stays there, with the values the CPU gives."""
+    device = cuda_device  # on CPU the comparison would be with itself
     sample, _ = sym_sample
     on_dev = {k: v.to(device) if torch.is_tensor(v) else v for k, v in sample.items()}
     for seed in range(3):  # both elements of the group are drawn among the seeds
