@@ -94,13 +94,12 @@ def cases(candidates: list[int]):
     yield ("zoomout_symmetry", f"V={len(vb)}, {ka}->{kz}, 1000 samples",
            lambda d: (lambda c=C0.to(d), e=sp.evecs.to(d), m=sp.mass.to(d), s=smp.to(d):
                       zoomout_symmetry(c, e, m, bb, kz, samples=s, involution=True)))
-    spec_det = laplacian_spectrum(v, f, k=60)
 
     def detect(d):
         def run():
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                res = detect_symmetries(v, f, spectrum=spec_det, mode="group", k_refine=40, device=d)
+                res = detect_symmetries(v, f, spectrum=spec, mode="group", k_refine=40, device=d)
             assert res.group["name"] == "D5h", res.group["name"]
         return run
     yield ("detect_symmetries group (device=)", f"star prism V={len(v)}, D5h", detect)

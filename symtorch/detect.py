@@ -74,7 +74,8 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
             representations leave the spectrum simple), the group path runs too and the larger
             verified group is kept. Measured: SCAPE 0 of 71 and FAUST 0 of 10 meshes take that
             second path, TOSCA 9 of 15 and TOSCA_Isometric 7 of 76 (quadrupeds; Cs either way),
-            Watertight tables 143, 152, 156, 160 all four (0 disables it). The group path uses a
+            Watertight tables 143, 152, 156, 160 all four (``scripts/verification_stats.py`` for the
+            four datasets; 0 disables it). The group path uses a
             coarse basis of ``max(k, 20)`` and refines every element to ``min(k_refine, 40)``
             (cost: one refinement per element). Either way ``result.group`` holds the group report
             (``groups.GroupInfo.to_dict()``) and each ``kind`` follows its order and orientation.

@@ -253,8 +253,9 @@ def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
 
     gap = mass-weighted mean over vertices and columns of ``|z(x) - z(g(x))|``, with ``z`` the
     log-descriptors standardised per column (units of each column's spread over the shape).
-    Measured: 0.00-0.21 for the detected reflections of 20 SCAPE, TOSCA, FAUST and TOSCA_Isometric
-    meshes, 0.70 for the best near-reflection of the code-built asymmetric shape.
+    Measured: 0.00-0.24 for the reflections reported on all SCAPE, TOSCA, FAUST and TOSCA_Isometric
+    meshes (``scripts/verification_stats.py``), 0.70 for the best near-reflection of the code-built
+    asymmetric shape.
 
     Args:
         desc: [V, D] positive descriptors (``descriptors``); p2p: [V]; mass: [V].
@@ -336,7 +337,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         max_worst: and no sample's mean geodesic distortion exceeds this (KLC units): a map that
             is right on most of the shape but wrong on one part is not a symmetry.
         max_descriptor_gap: and the map changes the descriptors by less than this
-            (``descriptor_gap``: at most 0.21 measured on real reflections, 0.70 on the near-
+            (``descriptor_gap``: at most 0.24 measured on real reflections, 0.70 on the near-
             reflection of a lopsided shape that keeps geodesic distances to 0.23 eps).
         select_vote: candidates voting below ``-select_vote`` are compared by geodesic distortion
             (``isometry_score`` on ``n_select_verify`` samples), the others only by their vote.
