@@ -85,11 +85,31 @@ def nearest_neighbors_among(queries: Tensor, points: Tensor, candidates: Tensor,
     if groups.shape[0] != queries.shape[0]:
         raise ValueError(f"groups has {groups.shape[0]} entries for {queries.shape[0]} queries")
     out = torch.empty(queries.shape[0], dtype=torch.long, device=queries.device)
+    if queries.shape[0] == 0:
+        return out
     sq = points.square().sum(-1)  # [M]
-    for s in range(0, queries.shape[0], chunk):
-        c = candidates[groups[s:s + chunk]]  # [n, m]
-        d = sq[c] - 2 * torch.einsum("nd,nmd->nm", queries[s:s + chunk], points[c])
-        out[s:s + chunk] = c.gather(1, d.argmin(1, keepdim=True))[:, 0]
+    # queries of one group share its candidates: sorted by group and cut into tiles of at most
+    # ``width`` queries, each tile is one [width, D] x [D, m] product, so a candidate row is
+    # gathered once per tile rather than once per query
+    counts = torch.bincount(groups, minlength=candidates.shape[0])
+    width = max(1, -(-2 * queries.shape[0] // max(int((counts > 0).sum()), 1)))
+    order = torch.argsort(groups, stable=True)
+    g = groups[order]
+    slot = torch.arange(len(order), device=groups.device) - (torch.cumsum(counts, 0) - counts)[g]
+    tiles = -(-counts // width)  # tiles per group
+    tile = (torch.cumsum(tiles, 0) - tiles)[g] + slot // width  # [N] tile of each sorted query
+    tile_group = torch.repeat_interleave(torch.arange(len(counts), device=groups.device), tiles)
+    n_tiles = int(tile_group.shape[0])
+    step = max(1, chunk * 8 // width)  # tiles per block: bounded memory
+    col = slot % width
+    for s in range(0, n_tiles, step):
+        sel = (tile >= s) & (tile < s + step)
+        c = candidates[tile_group[s:s + step]]  # [T, m]
+        padded = queries.new_zeros(c.shape[0], width, queries.shape[1])
+        padded[tile[sel] - s, col[sel]] = queries[order[sel]]
+        d = sq[c][:, None, :] - 2 * padded @ points[c].mT  # [T, width, m]
+        best = c.gather(1, d.argmin(-1))  # [T, width]
+        out[order[sel]] = best[tile[sel] - s, col[sel]]
     return out
 
 

@@ -145,6 +145,13 @@ def test_nearest_neighbors_among_is_the_best_candidate():
         c = cand[groups[q]]
         assert int(got[q]) in c.tolist()
         assert int(got[q]) == int(c[(points[c] - queries[q]).norm(dim=1).argmin()])
+    # uneven groups (one holds most queries, several none) cut into many tiles and blocks
+    cand = torch.stack([torch.randperm(500, generator=g)[:30] for _ in range(40)])
+    groups = torch.where(torch.rand(300, generator=g) < 0.7, 3, torch.randint(0, 20, (300,), generator=g))
+    got = nearest_neighbors_among(queries, points, cand, groups, chunk=2)
+    d = (points[cand[groups]] - queries[:, None]).norm(dim=-1)  # [300, 30]
+    assert torch.equal(got, cand[groups].gather(1, d.argmin(1, keepdim=True))[:, 0])
+    assert nearest_neighbors_among(queries[:0], points, cand, groups[:0]).shape == (0,)
     with pytest.raises(ValueError, match="groups has 299 entries for 300 queries"):
         nearest_neighbors_among(queries, points, cand, groups[:299])
 
