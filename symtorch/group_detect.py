@@ -80,7 +80,7 @@ from .group_maps import canonical_order, consistent_orientation, largest_subgrou
 from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
 from .procrustes import block_procrustes, block_project
-from .maps import nearest_neighbors, nearest_neighbors_among, p2p_to_fmap
+from .maps import TwoLevelSearch, p2p_to_fmap
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
 from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
@@ -227,7 +227,6 @@ class _Geometry:
     def __init__(self, verts_unit: np.ndarray, faces: np.ndarray, spectrum: Spectrum, points: np.ndarray,
                  dist_points: Tensor, n_samples: int):
         self.evecs, self.mass = spectrum.evecs, spectrum.mass
-        self.evecs32 = self.evecs.float()  # nearest neighbours need no float64
         V = self.evecs.shape[0]
         vt = torch.as_tensor(verts_unit)
         # farthest points among a regular subset of the vertices (4 per sample): the same spread at
@@ -238,35 +237,17 @@ class _Geometry:
         self.points = torch.as_tensor(points)
         self.dist_points = dist_points  # [n, V]
         # two-level vertex maps: the map on the samples, carried to every vertex by continuity
+        # (cells: the nearest sample in space; ~2 Voronoi cells of a sample searched per vertex)
         from scipy.spatial import cKDTree
 
-        c = min(max(2 * V // max(len(self.samples), 1), 12), V)  # ~2 Voronoi cells of a sample
-        _, nb = cKDTree(verts_unit).query(verts_unit, k=c)
-        self.nbhd = torch.as_tensor(np.asarray(nb).reshape(V, -1))  # [V, c] 3D neighbours
         _, ns = cKDTree(verts_unit[self.samples.numpy()]).query(verts_unit)
-        self.nearest_sample = torch.as_tensor(np.asarray(ns))  # [V] index into samples
+        c = min(max(2 * V // max(len(self.samples), 1), 12), V)
+        self.search = TwoLevelSearch(verts_unit, self.evecs, self.samples, torch.as_tensor(np.asarray(ns)), c,
+                                     table=True)
 
     def p2p(self, C: Tensor, at: Tensor | None = None) -> Tensor:
-        """Vertex map of C (``argmin_j ||evecs[j] - evecs[i] @ C||``), two-level.
-
-        The samples are mapped by brute-force nearest neighbour among the samples; a vertex ``i`` near
-        sample ``s`` then looks for its image among the 3D neighbours of ``g(s)`` only (an isometry is
-        continuous, and the samples are much closer than the tolerance ``eps``).
-
-        Args:
-            C: [k, k].
-            at: [N] vertices to map (default all).
-
-        Returns:
-            [N] (or [V]) image vertex ids.
-        """
-        k = C.shape[-1]
-        E = self.evecs[:, :k]
-        at = torch.arange(E.shape[0]) if at is None else at
-        Es = E[self.samples]
-        img_s = self.samples[nearest_neighbors(Es @ C, Es)]  # [S]
-        return nearest_neighbors_among((E[at] @ C).float(), self.evecs32[:, :k], self.nbhd[img_s],
-                                       self.nearest_sample[at])
+        """Vertex map of C [k, k] at the vertices ``at`` (default all): ``maps.TwoLevelSearch``."""
+        return self.search(C, at)
 
     def distortion_at(self, gp: Tensor, gx: Tensor) -> float:
         """Geodesic distortion (units of eps) from the images ``gp`` of the points and ``gx`` of the

@@ -130,3 +130,53 @@ def fmap_to_p2p(C: Tensor, evecs: Tensor, evecs_src: Tensor | None = None) -> Te
     if C.dim() == 3:
         return torch.stack([nearest_neighbors(src @ c, evecs) for c in C])
     return nearest_neighbors(src @ C, evecs)
+
+
+class TwoLevelSearch:
+    """Vertex maps ``p2p[i] = argmin_j ||evecs[j] - evecs[i] @ C||`` of a shape onto itself, in two levels.
+
+    The samples' images are searched among the samples; every vertex then searches only the
+    ``n_local`` vertices nearest in space to the image of its own sample (its ``cells`` entry):
+    V * n_local distances instead of V * V. An isometry is continuous and the samples lie much
+    closer together than the accuracy asked of the map, so the answers are those of the full search
+    up to near-ties (``tests/test_maps.py``).
+
+    Args:
+        verts: [V, 3] positions; evecs: [V, K] the embedding (searched in float32 at the vertex level).
+        samples: [S] vertex ids; cells: [V] long, position in ``samples`` of each vertex's sample
+            (``geodesics.voronoi_cells``, or the nearest sample in space); -1 anywhere, or
+            ``n_local`` <= 0, means the full search.
+        table: look up every vertex's ``n_local`` spatial neighbours once (for shapes mapped many
+            times); else they are queried at each map's sample images.
+    """
+
+    def __init__(self, verts, evecs: Tensor, samples: Tensor, cells: Tensor, n_local: int, table: bool = False):
+        from scipy.spatial import cKDTree
+
+        V = evecs.shape[0]
+        self.evecs, self.evecs32 = evecs, evecs.float()
+        self.samples, self.cells = samples, cells
+        self.full = n_local <= 0 or n_local >= V or bool((cells < 0).any())
+        self.verts = np.asarray(verts.detach().cpu().numpy() if isinstance(verts, Tensor) else verts)
+        self.tree = None if self.full else cKDTree(self.verts)
+        self.n_local = min(n_local, V)
+        self.table = None
+        if table and not self.full:
+            _, nb = self.tree.query(self.verts, k=self.n_local)
+            self.table = torch.as_tensor(np.asarray(nb).reshape(V, -1), device=evecs.device)
+
+    def __call__(self, C: Tensor, at: Tensor | None = None) -> Tensor:
+        """Images of the vertices ``at`` (default all) under ``C [k, k]``: [N] long."""
+        k = C.shape[-1]
+        E = self.evecs[:, :k]
+        at = torch.arange(E.shape[0], device=E.device) if at is None else at
+        if self.full:
+            return nearest_neighbors(E[at] @ C, E)
+        Es = E[self.samples]
+        img = self.samples[nearest_neighbors(Es @ C, Es)]  # [S] images of the samples
+        if self.table is not None:
+            near = self.table[img]
+        else:
+            _, nb = self.tree.query(self.verts[img.cpu().numpy()], k=self.n_local)
+            near = torch.as_tensor(np.asarray(nb).reshape(len(img), -1), device=E.device)
+        return nearest_neighbors_among((E[at] @ C).float(), self.evecs32[:, :k], near, self.cells[at])

@@ -10,7 +10,10 @@ import torch
 
 from shapes import mirror_mesh
 from symtorch.groups import compose_fmap, compose_p2p, inverse_fmap
-from symtorch.maps import fmap_to_p2p, nearest_neighbors, nearest_neighbors_among, p2p_to_fmap
+from symtorch.geodesics import voronoi_cells
+from symtorch.maps import (TwoLevelSearch, fmap_to_p2p, nearest_neighbors, nearest_neighbors_among,
+                           p2p_to_fmap)
+from symtorch.sampling import farthest_point_sampling
 from symtorch.shapes import polar_prism, polar_prism_symmetries, symmetry_maps
 from symtorch.spectrum import band_boundary, eigen_bands, laplacian_spectrum
 
@@ -154,6 +157,26 @@ def test_nearest_neighbors_among_is_the_best_candidate():
     assert nearest_neighbors_among(queries[:0], points, cand, groups[:0]).shape == (0,)
     with pytest.raises(ValueError, match="groups has 299 entries for 300 queries"):
         nearest_neighbors_among(queries, points, cand, groups[:299])
+
+
+def test_two_level_search_agrees_with_the_full_search(mirror):
+    s, K, perm = mirror
+    verts, faces, _ = mirror_mesh(2)
+    vu = torch.as_tensor(verts) * s.scale
+    C = p2p_to_fmap(perm, s.evecs[:, :K], s.mass)  # the true mirror's matrix, truncated
+    full = fmap_to_p2p(C, s.evecs[:, :K])
+    samples = farthest_point_sampling(vu, 150)
+    cells = voronoi_cells(vu, faces, samples)
+    for table in (False, True):
+        local = TwoLevelSearch(vu, s.evecs, samples, cells, 24, table=table)(C)
+        assert float((local == full).double().mean()) > 0.97
+        assert float((local == perm).double().mean()) >= float((full == perm).double().mean()) - 0.01
+        at = torch.arange(0, len(vu), 7)
+        assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, cells, 24, table=table)(C, at), local[at])
+    # no local search: a cell without a sample, or n_local 0
+    no_cell = torch.full_like(cells, -1)
+    assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, no_cell, 24)(C), full)
+    assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, cells, 0)(C), full)
 
 
 def test_maps_on_device(mirror, device):

@@ -170,21 +170,6 @@ def test_several_coarse_starts(blob):
     assert res.info["k0"] == sorted(set(res.info["k0"])) and len(res.info["k0"]) >= 1
 
 
-def test_local_dense_map_agrees_with_the_full_search(blob):
-    from symtorch.reflect import _dense_map
-
-    v, f, mirror = blob
-    s = laplacian_spectrum(v, f, k=40)
-    vu = v * s.scale
-    C = p2p_to_fmap(mirror, s.evecs[:, :30], s.mass)  # the true mirror's matrix, truncated
-    Q, E = s.evecs[:, :30] @ C, s.evecs[:, :30]
-    samples = farthest_point_sampling(vu, 200)
-    full = _dense_map(Q, E, vu, f, samples, n_local=0)
-    local = _dense_map(Q, E, vu, f, samples, n_local=32)
-    assert float((local == full).double().mean()) > 0.97
-    assert float((local == mirror).double().mean()) >= float((full == mirror).double().mean()) - 0.01
-
-
 def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
     from symtorch.reflect import detect_reflection
 
