@@ -94,13 +94,15 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
     schedule += [k_final] * n_iter_end
     k = C0.shape[-1]
     T = torch.arange(evecs.shape[0], device=evecs.device) if targets is None else targets
+    # the rows the loop reads, gathered once (each step then slices columns)
+    ES, ET = evecs[S, :k_final], evecs[T, :k_final]
     for k_next in schedule:
-        Q, P = evecs[S, :k] @ C, evecs[T, :k]
+        Q, P = ES[:, :k] @ C, ET[:, :k]
         if guide is not None:
             Q, P = torch.cat([Q, guide[0][S]], 1), torch.cat([P, guide[1][T]], 1)
-        p2p = T[nearest_neighbors(Q, P)]
-        A = evecs[S, :k_next]
-        B = evecs[p2p, :k_next]
+        nn = nearest_neighbors(Q, P)
+        A = ES[:, :k_next]
+        B = ET[nn, :k_next]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B
         AtW = (A * w[:, None]).mT
         Cn = torch.linalg.solve(AtW @ A, AtW @ B)
