@@ -18,7 +18,6 @@ import inspect
 import json
 import logging
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +25,8 @@ import torch
 
 from ._checks import check_mesh, check_verts
 from .io import atomic_write
-from .spectrum import Spectrum, generalized_eigsh, laplacian_matrices, laplacian_spectrum
+from .spectrum import (Spectrum, generalized_eigsh, laplacian_matrices, laplacian_spectrum,
+                       warn_if_disconnected)
 
 log = logging.getLogger(__name__)
 
@@ -100,7 +100,10 @@ def spectrum_key(verts, faces=None, k: int = 30, *, normalize_area: bool = True)
     version (stored inside the file instead, so a new version overwrites rather than accumulates)
     nor the output ``dtype``/``device`` (the file holds float64; the cast happens on load).
     """
-    key = spectrum_key_dict(verts, faces, k, normalize_area=normalize_area)
+    return _key_name(spectrum_key_dict(verts, faces, k, normalize_area=normalize_area))
+
+
+def _key_name(key: dict) -> str:
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
 
@@ -174,16 +177,14 @@ def cached_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = Tr
         logged warning.
     """
     key = spectrum_key_dict(verts, faces, k, normalize_area=normalize_area)
-    name = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
-    path = Path(cache_dir if cache_dir is not None else default_spectrum_cache_dir()) / f"{name}.npz"
+    path = Path(cache_dir if cache_dir is not None else default_spectrum_cache_dir()) / f"{_key_name(key)}.npz"
     hit = _read(path, key)
     out = dict(dtype=dtype, device=device)
     if hit is not None:
         evals, evecs, mass, scale = hit
         log.debug("spectrum cache hit %s", path.name)
-        if faces is not None and _several_components(evals):
-            warnings.warn("second eigenvalue is ~0: the mesh has several connected components; "
-                          "symmetries are only meaningful per component", stacklevel=2)
+        if faces is not None:
+            warn_if_disconnected(evals, stacklevel=2)
         return Spectrum(torch.as_tensor(evals, **out), torch.as_tensor(evecs, **out),
                         torch.as_tensor(mass, **out), scale)
     spec = laplacian_spectrum(verts, faces, k, normalize_area=normalize_area)  # float64, CPU
@@ -193,7 +194,3 @@ def cached_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = Tr
         log.warning("could not write spectrum cache %s (%s); continuing without it", path, err)
     return Spectrum(spec.evals.to(**out), spec.evecs.to(**out), spec.mass.to(**out), spec.scale)
 
-
-def _several_components(evals: np.ndarray) -> bool:
-    """True when the second eigenvalue is ~0 (several connected components), as in the solver."""
-    return evals.shape[0] > 1 and evals[1] < 1e-6 * max(evals[-1], 1e-12)

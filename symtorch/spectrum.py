@@ -229,12 +229,18 @@ def laplacian_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool =
     # Cotangent stiffness is scale invariant in 2D; the mass scales with area.
     mass = mass * scale ** 2
     evals, evecs = generalized_eigsh(W, mass, k)
-    if faces is not None and evals.shape[0] > 1 and evals[1] < 1e-6 * max(evals[-1], 1e-12):
-        warnings.warn("second eigenvalue is ~0: the mesh has several connected components; "
-                      "symmetries are only meaningful per component", stacklevel=2)
+    if faces is not None:
+        warn_if_disconnected(evals, stacklevel=3)
     out = dict(dtype=dtype, device=device)
     return Spectrum(torch.as_tensor(evals, **out), torch.as_tensor(evecs, **out),
                     torch.as_tensor(mass, **out), float(scale))
+
+
+def warn_if_disconnected(evals: np.ndarray, stacklevel: int = 2) -> None:
+    """Warn when the second eigenvalue is ~0: a mesh of several connected components."""
+    if evals.shape[0] > 1 and evals[1] < 1e-6 * max(evals[-1], 1e-12):
+        warnings.warn("second eigenvalue is ~0: the mesh has several connected components; "
+                      "symmetries are only meaningful per component", stacklevel=stacklevel + 1)
 
 
 def eigen_bands(evals, rel_gap: float = 0.3, window: int = 4) -> list[range]:

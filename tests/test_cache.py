@@ -215,3 +215,12 @@ def test_value_errors_pass_through(tmp_path, verts, faces, k, match):
     with pytest.raises(ValueError, match=match):
         cached_spectrum(verts, faces, k, cache_dir=tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_several_components_warn_on_a_miss_and_on_a_hit(tmp_path):
+    v, f = icosphere(1)
+    verts, faces = np.concatenate([v, v + 5.0]), np.concatenate([f, f + len(v)])
+    for _ in range(2):  # computed and written, then read back
+        with pytest.warns(UserWarning, match="connected components"):
+            cached_spectrum(verts, faces, k=4, cache_dir=tmp_path)
+    assert len(list(tmp_path.glob("*.npz"))) == 1
