@@ -61,25 +61,34 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
 
     Greedy: an element joins when the set it generates, by products matched to the elements present
     (within ``tol`` eps, :func:`map_table`), stays inside the verified elements; otherwise it is left
-    out (a duplicate, or a near-isometry the rest of the group does not confirm).
+    out (a near-isometry the rest of the group does not confirm). Maps within ``tol`` of each other
+    are one element, represented by the lowest-cost copy, also where a product matches another copy.
 
     Returns:
         (indices kept, [G', G'] long table among them, renumbered in the order kept).
     """
     T, gap = map_table(p2ps, verts_unit, samples)
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
-    ok = gap <= tol
     x = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
     same = ((x[:, None] - x[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
     e = 0  # the identity is the first element
+    order = [e] + [int(i) for i in np.argsort(cost, kind="stable") if i != e]
+    # duplicates (the same map twice, e.g. a closure product that upsampled onto an element) stand
+    # for the lowest-cost copy: a product matched to a copy is a product matched to that element
+    rep = np.arange(len(p2ps))
+    for i in order:
+        if rep[i] == i:
+            rep[[j for j in order if rep[j] == j and j != i and same[i, j]]] = i
+    T = rep[T]
+    ok = gap <= tol
     group = [e]
-    for x in [int(i) for i in np.argsort(cost) if i != e]:
-        if x in group or same[x, group].any():
-            continue  # present, or a duplicate of an element present
+    for x in order[1:]:
+        if rep[x] != x or x in group:
+            continue  # a duplicate of another element, or present
         trial = group + [x]
         while trial is not None:
             sub = np.ix_(trial, trial)
-            if not ok[sub].all() or same[sub][~np.eye(len(trial), dtype=bool)].any():
+            if not ok[sub].all():
                 trial = None
                 break
             new = sorted(set(T[sub].reshape(-1).tolist()) - set(trial))

@@ -6,6 +6,7 @@ from itertools import permutations
 import numpy as np
 import pytest
 import torch
+from scipy.spatial import cKDTree
 
 from symtorch import shapes
 from symtorch.detect import detect_symmetries
@@ -97,6 +98,25 @@ def test_largest_subgroup_drops_a_duplicate():
     keep, table = largest_subgroup(maps, [0.0] + [0.1] * 8, torch.as_tensor(v), torch.arange(0, len(v), 7))
     assert len(keep) == 8 and not (1 in keep and 3 in keep)
     assert check_group(table).is_group
+
+
+def test_largest_subgroup_reads_a_product_that_matches_a_copy_as_the_element():
+    """Watertight 160: a mirror's map is off on a few vertices, so mirror∘mirror is matched to a
+    near-copy of the identity (a closure product) rather than to the identity; the copy is the
+    identity, and the group is kept whole."""
+    v, f = shapes.table(3)
+    mats = shapes.true_symmetries("table")
+    maps = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, mats)]
+    samples = torch.arange(0, len(v), 7)
+    m = next(i for i, R in enumerate(mats) if np.linalg.det(R) < 0)  # a mirror
+    _, nearest = cKDTree(v).query(v, k=2)
+    moved = torch.arange(len(v)) % 3 != 0  # two thirds of the vertices land next to their image
+    maps[m] = torch.where(moved, torch.as_tensor(nearest[:, 1])[maps[m]], maps[m])
+    copy = maps[m][maps[m]]  # mirror∘mirror: the identity up to a vertex's neighbour
+    p2ps = maps + [copy]
+    cost = [0.0] + [0.1] * 7 + [0.01]
+    keep, table = largest_subgroup(p2ps, cost, torch.as_tensor(v), samples)
+    assert sorted(keep) == list(range(8)) and check_group(table).is_group
 
 
 # --------------------------------------------------------------------------- shapes with known groups
