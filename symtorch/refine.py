@@ -95,7 +95,8 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
     k = C0.shape[-1]
     T = torch.arange(evecs.shape[0], device=evecs.device) if targets is None else targets
     # the rows the loop reads, gathered once (each step then slices columns)
-    ES, ET = evecs[S, :k_final], evecs[T, :k_final]
+    kmax = max(k_final, C0.shape[-1])  # a start larger than k_final is cut to it by the first step
+    ES, ET = evecs[S, :kmax], evecs[T, :kmax]
     for k_next in schedule:
         Q, P = ES[:, :k] @ C, ET[:, :k]
         if guide is not None:

@@ -67,6 +67,15 @@ def test_zoomout_grows_a_coarse_mirror_matrix_to_the_exact_mirror(blob):
     assert float((fmap_to_p2p(C, s.evecs[:, :kf]) == torch.arange(len(v))).double().mean()) > 0.99
 
 
+def test_zoomout_from_a_larger_start_cuts_it_to_the_final_size(blob):
+    v, s, bands, mirror = blob
+    k_big, kf = band_boundary(bands, 40), band_boundary(bands, 20)
+    C0 = p2p_to_fmap(mirror, s.evecs[:, :k_big], s.mass)
+    C = zoomout_symmetry(C0, s.evecs, s.mass, bands, kf, involution=True)
+    assert C.shape == (kf, kf)
+    assert float((fmap_to_p2p(C, s.evecs[:, :kf]) == mirror).double().mean()) > 0.99
+
+
 def test_zoomout_rejects_a_final_size_inside_a_band():
     C0 = torch.eye(1, dtype=torch.float64)
     evecs = torch.eye(4, dtype=torch.float64)
