@@ -100,7 +100,7 @@ def nearest_neighbors_among(queries: Tensor, points: Tensor, candidates: Tensor,
     tile = (torch.cumsum(tiles, 0) - tiles)[g] + slot // width  # [N] tile of each sorted query
     tile_group = torch.repeat_interleave(torch.arange(len(counts), device=groups.device), tiles)
     n_tiles = int(tile_group.shape[0])
-    step = max(1, chunk * 8 // width)  # tiles per block: bounded memory
+    step = max(1, chunk // width)  # tiles per block: about ``chunk`` queries' worth of memory
     col = slot % width
     for s in range(0, n_tiles, step):
         sel = (tile >= s) & (tile < s + step)
@@ -155,7 +155,7 @@ class TwoLevelSearch:
 
         V = evecs.shape[0]
         self.evecs, self.evecs32 = evecs, evecs.float()
-        self.samples, self.cells = samples, cells
+        self.samples, self.cells = samples.to(evecs.device), cells.to(evecs.device)
         self.full = n_local <= 0 or n_local >= V or bool((cells < 0).any())
         self.verts = np.asarray(verts.detach().cpu().numpy() if isinstance(verts, Tensor) else verts)
         self.tree = None if self.full else cKDTree(self.verts)
