@@ -321,7 +321,8 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
                       select_vote: float = 0.4, n_select_verify: int = 16, n_verify: int = 32,
                       n_local: int = 64, w_guide: float = 1.0, compare_ratio: float = 2.0,
                       verify: str = "involution", n_iter_all: int = 0, step_refine: int = 12,
-                      max_descriptor_gap: float = 0.4, timer=None) -> SymmetryResult:
+                      max_descriptor_gap: float = 0.4, prune_k: int = 14, prune_vote: float = 0.3,
+                      timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
     Args:
@@ -343,6 +344,12 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
         early_vote, early_distortion: stop comparing candidates once one votes below
             ``-early_vote`` with a distortion below ``early_distortion`` (KLC units) and the next
             candidate's consistency score exceeds ``compare_ratio`` times the first's.
+        prune_k, prune_vote: each candidate's upsampling stops at ``prune_k`` (a band end) to vote;
+            one whose vote exceeds ``prune_vote`` (it already preserves the orientation) is not grown
+            to ``k_select`` (0: no stop). Against no stop: SCAPE (71) 94.1 -> 94.5 % / 44.6 -> 44.1e-3,
+            TOSCA_Isometric (76) 95.5 -> 95.4 % / 33.5 -> 33.4, TOSCA 17.8 -> 17.7, FAUST 46.4 -> 46.6;
+            selection ~15 % faster. The rate changes come from the two-stage schedule itself (the same
+            with ``prune_vote=2``, nothing dropped): per-mesh ups and downs, not a systematic gain.
         step_refine: smallest basis growth per step of the final upsampling (12 instead of 4: the same
             accuracy on 8 SCAPE meshes at k_refine=100, refine 0.26 -> 0.07 s).
         n_iter_all: final upsampling iterations fitted against every vertex rather than the samples
@@ -439,6 +446,15 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             search.append(TwoLevelSearch(vt, evecs, samples, cells, n_local))
         return search[0]
 
+    km = band_boundary(bands, prune_k) if prune_k > 0 else 0
+
+    def vote_of(C: Tensor) -> tuple[Tensor, float]:
+        """The map of ``C`` on the vote samples (identity elsewhere) and its orientation vote."""
+        kk = C.shape[-1]
+        p2p_s = torch.arange(V)
+        p2p_s[vote_samples] = samples[nearest_neighbors(evecs[vote_samples, :kk] @ C, evecs[samples, :kk])]
+        return p2p_s, float(orientation_vote(p2p_s, vt, normals, vote_samples))
+
     def select(guided: bool):
         """Upsample the candidates to ``ks``; the best one (see below) and the trials."""
         best, trials, guides = None, [], {}
@@ -446,12 +462,21 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             if guided and c not in guides:  # one per candidate, whatever the coarse start
                 guides[c] = _orientation_guide(verts_unit, faces, dist_ext, perms[c], w_guide)
             guide = guides.get(c)
-            Cs = zoomout_symmetry(C0[c, :kc, :kc], evecs, mass, bands, ks, samples=sel, involution=True,
+            Cstart = C0[c, :kc, :kc]
+            if kc < km < ks:  # halfway: a candidate that already preserves orientation is dropped
+                Cm = zoomout_symmetry(Cstart, evecs, mass, bands, km, samples=sel, involution=True,
+                                      block=block_refine, targets=samples, guide=guide, n_iter_end=0)
+                vote_m = vote_of(Cm)[1]
+                if vote_m > prune_vote:
+                    trials.append((round(vote_m, 3), math.inf))
+                    key = (1, vote_m)
+                    if best is None or key < best[0]:
+                        best = (key, (c, kc), Cm)
+                    continue
+                Cstart = Cm
+            Cs = zoomout_symmetry(Cstart, evecs, mass, bands, ks, samples=sel, involution=True,
                                   block=block_refine, targets=samples, guide=guide)
-            p2p_v = samples[nearest_neighbors(evecs[vote_samples, :ks] @ Cs, evecs[samples, :ks])]
-            p2p_s = torch.arange(V)
-            p2p_s[vote_samples] = p2p_v
-            vote = float(orientation_vote(p2p_s, vt, normals, vote_samples))
+            p2p_s, vote = vote_of(Cs)
             # a reflection reverses the orientation everywhere (identity-like collapses vote +1,
             # partial swaps near 0); among the clearly reversing candidates the most isometric one
             # wins: a limb mirrored onto itself instead of onto its twin also reverses orientation,

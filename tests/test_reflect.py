@@ -170,6 +170,21 @@ def test_several_coarse_starts(blob):
     assert res.info["k0"] == sorted(set(res.info["k0"])) and len(res.info["k0"]) >= 1
 
 
+def test_candidates_that_preserve_orientation_halfway_are_dropped(blob):
+    from symtorch.reflect import detect_reflection
+
+    v, f, mirror = blob
+    s = laplacian_spectrum(v, f, k=80)
+    plain = detect_reflection(v, f, s, prune_k=0)
+    pruned = detect_reflection(v, f, s)
+    assert torch.equal(plain.reflection.p2p, mirror) and torch.equal(pruned.reflection.p2p, mirror)
+    # a bar every vote passes: no candidate is grown or measured, and the one reversing the
+    # orientation most is still the one refined, which verifies
+    every = detect_reflection(v, f, s, prune_vote=-1.5)  # votes lie in [-1, 1]
+    assert all(math.isinf(d) for _, d in every.info["trials"])
+    assert torch.equal(every.reflection.p2p, mirror)
+
+
 def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
     from symtorch.reflect import detect_reflection
 
