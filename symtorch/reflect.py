@@ -15,7 +15,8 @@ Pipeline (stage names as in ``SymmetryResult.timings``):
    multi-scale geodesic-disk indicators around every paired extremum plus HKS/WKS columns, all
    candidates in one batched band-by-band Procrustes (ALGORITHM §3).
 3. **refine** — each of the best candidates is grown to a medium basis by spectral upsampling with
-   the involution structure (``refine.zoomout_symmetry``); the one whose vertex map reverses the
+   the involution structure (``refine.zoomout_symmetry``; one that already preserves the
+   orientation halfway, near k=14, is dropped there); the one whose vertex map reverses the
    orientation most consistently (``orientation_vote``: a reflection reverses it everywhere, an
    identity-like collapse nowhere, a partial swap in places) wins and is grown to the final basis.
 4. **p2p**, **verify** — the dense vertex map (the samples' images searched among the samples,
