@@ -146,6 +146,10 @@ class GeodesicSolver:
         self.n_verts = self.verts.shape[0]
         self._out = _out_format(verts)
         self._graph: sp.csr_matrix | None = None
+        # fields already solved, by source: a detection asks for some sources again (the images
+        # of the samples under several candidate maps often coincide); at most 64 MB of them
+        self._fields: dict[int, np.ndarray] = {}
+        self._max_fields = max(1, (64 << 20) // (8 * max(self.n_verts, 1)))
         self._heat = None
         try:
             import potpourri3d as pp3d
@@ -209,7 +213,8 @@ class GeodesicSolver:
         """Distances from each source separately: one heat solve per source.
 
         Args:
-            sources: [S] vertex ids (repeats allowed; each is solved once).
+            sources: [S] vertex ids (repeats allowed; each is solved once, and a source this solver
+                has solved before, up to 64 MB of fields, is read back instead).
 
         Returns:
             [S, V], row i the distance field of ``sources[i]``.
@@ -217,18 +222,24 @@ class GeodesicSolver:
         s = _check_sources(sources, self.n_verts)
         uniq, inv = np.unique(s, return_inverse=True)
         D = np.empty((uniq.size, self.n_verts), dtype=np.float64)
+        known = np.asarray([int(src) in self._fields for src in uniq], dtype=bool)
+        for i in np.flatnonzero(known):
+            D[i] = self._fields[int(uniq[i])]
         bad = np.zeros(uniq.size, dtype=bool)
+        todo = np.flatnonzero(~known)
         if self._heat is not None:
-            for i, src in enumerate(uniq):
-                D[i] = self._heat.compute_distance(int(src))
-            bad = ~np.isfinite(D).all(axis=1)
+            for i in todo:
+                D[i] = self._heat.compute_distance(int(uniq[i]))
+            bad[todo] = ~np.isfinite(D[todo]).all(axis=1)
             if bad.any():
                 warnings.warn(f"heat method returned non-finite distances for {int(bad.sum())} "
                               f"source(s); using Dijkstra for those", stacklevel=2)
         else:
-            bad[:] = True
+            bad[todo] = True
         if bad.any():
             D[bad] = self._graph_rows(uniq[bad])
+        for i in todo[: max(self._max_fields - len(self._fields), 0)]:
+            self._fields[int(uniq[i])] = D[i].copy()
         return self._tensor(D[inv])
 
     def pairwise(self, points) -> Tensor:

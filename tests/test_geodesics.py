@@ -144,3 +144,32 @@ def test_voronoi_cells_mark_unreached_components(sphere):
     two_f = np.concatenate([faces, faces + len(verts)])
     cells = voronoi_cells(two_v, two_f, [0, 5])
     assert bool((cells[: len(verts)] >= 0).all()) and bool((cells[len(verts):] == -1).all())
+
+
+def test_distances_from_reads_back_what_it_solved(sphere):
+    verts, faces = sphere[:2]
+    solver = GeodesicSolver(verts, faces)
+    if not solver.uses_heat:
+        pytest.skip("potpourri3d unavailable")
+    calls = []
+
+    class Counting:  # the heat solver, counting its solves
+        def __init__(self, inner):
+            self.inner = inner
+
+        def compute_distance(self, src):
+            calls.append(src)
+            return self.inner.compute_distance(src)
+
+    fresh = GeodesicSolver(verts, faces).distances_from([3, 7, 11, 3])
+    solver._heat = Counting(solver._heat)
+    first = solver.distances_from([3, 7])
+    both = solver.distances_from([11, 3, 7, 11])
+    assert sorted(calls) == [3, 7, 11]  # 3 and 7 read back, 11 solved once
+    torch.testing.assert_close(both[1:3], first, rtol=0, atol=0)
+    torch.testing.assert_close(both[[1, 2, 0]], fresh[[0, 1, 2]], rtol=0, atol=0)
+    # the store is bounded: beyond it, fields are solved again
+    small = GeodesicSolver(verts, faces)
+    small._max_fields = 2
+    small.distances_from([1, 2, 3, 4])
+    assert len(small._fields) == 2
