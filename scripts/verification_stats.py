@@ -18,17 +18,11 @@ import argparse
 import warnings
 
 import numpy as np
-import torch
 
 from symtorch.benchmarks import list_benchmark, load_mesh
 from symtorch.detect import detect_symmetries
 from symtorch.eval import evenly_spaced
-
-
-def smallest_rel_gap(evals: torch.Tensor) -> float:
-    lam = np.sort(evals.numpy())
-    lam = lam[lam > 1e-9 * lam.max()]
-    return float((np.diff(lam) / lam[1:]).min())
+from symtorch.spectrum import smallest_relative_gap
 
 
 def main() -> None:
@@ -53,7 +47,7 @@ def main() -> None:
                 gaps.append(res.info.get("guided", res.info)["descriptor_gap"])
             scores = res.info.get("candidate_scores", [])
             thirds.append(scores[2] if len(scores) > 2 else np.inf)
-            eig.append(smallest_rel_gap(res.spectrum.evals))
+            eig.append(smallest_relative_gap(res.spectrum.evals.numpy()))
         thirds = np.asarray(thirds)
         print(f"| {ds} | {len(meshes)} | {len(gaps)} | {min(gaps):.2f}-{max(gaps):.2f} | "
               f"{int((thirds < args.group_tol).sum())} | {thirds.min():.3f} | {min(eig):.1e} |", flush=True)

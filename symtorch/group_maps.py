@@ -69,8 +69,8 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     """
     T, gap = map_table(p2ps, verts_unit, samples)
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
-    x = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
-    same = ((x[:, None] - x[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
+    pos = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
+    same = ((pos[:, None] - pos[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
     e = 0  # the identity is the first element
     order = [e] + [int(i) for i in np.argsort(cost, kind="stable") if i != e]
     # duplicates (the same map twice, e.g. a closure product that upsampled onto an element) stand
@@ -82,10 +82,10 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     T = rep[T]
     ok = gap <= tol
     group = [e]
-    for x in order[1:]:
-        if rep[x] != x or x in group:
+    for el in order[1:]:
+        if rep[el] != el or el in group:
             continue  # a duplicate of another element, or present
-        trial = group + [x]
+        trial = group + [el]
         while trial is not None:
             sub = np.ix_(trial, trial)
             if not ok[sub].all():

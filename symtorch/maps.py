@@ -10,6 +10,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ._checks import to_numpy
+
 _BRUTE_FORCE_MAX = 2 * 10 ** 8  # query x point pairs up to which brute force is used on CPU
 _EXACT_DTYPE_MAX = 2 * 10 ** 7  # above this, brute force runs in float32
 _KDTREE_MAX_DIM = 1024  # spectral embeddings are 2-manifolds: KD-trees stay fast in 100+ dims
@@ -102,14 +104,16 @@ def nearest_neighbors_among(queries: Tensor, points: Tensor, candidates: Tensor,
     n_tiles = int(tile_group.shape[0])
     step = max(1, chunk // width)  # tiles per block: about ``chunk`` queries' worth of memory
     col = slot % width
-    for s in range(0, n_tiles, step):
-        sel = (tile >= s) & (tile < s + step)
+    # ``tile`` ascends along the sorted queries: each block of tiles is one slice of them
+    cut = torch.searchsorted(tile, torch.arange(0, n_tiles + step, step, device=tile.device)).tolist()
+    for b, s in enumerate(range(0, n_tiles, step)):
+        q = slice(cut[b], cut[b + 1])
         c = candidates[tile_group[s:s + step]]  # [T, m]
         padded = queries.new_zeros(c.shape[0], width, queries.shape[1])
-        padded[tile[sel] - s, col[sel]] = queries[order[sel]]
+        padded[tile[q] - s, col[q]] = queries[order[q]]
         d = sq[c][:, None, :] - 2 * padded @ points[c].mT  # [T, width, m]
         best = c.gather(1, d.argmin(-1))  # [T, width]
-        out[order[sel]] = best[tile[sel] - s, col[sel]]
+        out[order[q]] = best[tile[q] - s, col[q]]
     return out
 
 
@@ -157,7 +161,7 @@ class TwoLevelSearch:
         self.evecs, self.evecs32 = evecs, evecs.float()
         self.samples, self.cells = samples.to(evecs.device), cells.to(evecs.device)
         self.full = n_local <= 0 or n_local >= V or bool((cells < 0).any())
-        self.verts = np.asarray(verts.detach().cpu().numpy() if isinstance(verts, Tensor) else verts)
+        self.verts = to_numpy(verts)
         self.tree = None if self.full else cKDTree(self.verts)
         self.n_local = min(n_local, V)
         self.table = None

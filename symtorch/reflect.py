@@ -463,27 +463,22 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             if guided and c not in guides:  # one per candidate, whatever the coarse start
                 guides[c] = _orientation_guide(verts_unit, faces, dist_ext, perms[c], w_guide)
             guide = guides.get(c)
-            Cstart = C0[c, :kc, :kc]
+            Cs, pruned = C0[c, :kc, :kc], False
             if kc < km < ks:  # halfway: a candidate that already preserves orientation is dropped
-                Cm = zoomout_symmetry(Cstart, evecs, mass, bands, km, samples=sel, involution=True,
+                Cs = zoomout_symmetry(Cs, evecs, mass, bands, km, samples=sel, involution=True,
                                       block=block_refine, targets=samples, guide=guide, n_iter_end=0)
-                vote_m = vote_of(Cm)[1]
-                if vote_m > prune_vote:
-                    trials.append((round(vote_m, 3), math.inf))
-                    key = (1, vote_m)
-                    if best is None or key < best[0]:
-                        best = (key, (c, kc), Cm)
-                    continue
-                Cstart = Cm
-            Cs = zoomout_symmetry(Cstart, evecs, mass, bands, ks, samples=sel, involution=True,
-                                  block=block_refine, targets=samples, guide=guide)
-            p2p_s, vote = vote_of(Cs)
+                p2p_s, vote = vote_of(Cs)
+                pruned = vote > prune_vote
+            if not pruned:
+                Cs = zoomout_symmetry(Cs, evecs, mass, bands, ks, samples=sel, involution=True,
+                                      block=block_refine, targets=samples, guide=guide)
+                p2p_s, vote = vote_of(Cs)
             # a reflection reverses the orientation everywhere (identity-like collapses vote +1,
             # partial swaps near 0); among the clearly reversing candidates the most isometric one
             # wins: a limb mirrored onto itself instead of onto its twin also reverses orientation,
             # but breaks the distances where it joins the body
             distortion = math.inf
-            if vote < -select_vote:
+            if not pruned and vote < -select_vote:
                 distortion = isometry_score(solver, p2p_s, samples[:n_select_verify],
                                             source_dist=sample_dist(n_select_verify))[1]
             trials.append((round(vote, 3), round(distortion, 3)))

@@ -8,6 +8,7 @@ factor applied to the vertices (``verts_unit = verts * scale``). ``evecs`` are m
 from __future__ import annotations
 
 import logging
+import math
 import warnings
 from typing import NamedTuple
 
@@ -146,10 +147,17 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     return np.maximum(evals, 0.0), evecs
 
 
+def smallest_relative_gap(evals) -> float:
+    """Smallest ``(lam[i+1] - lam[i]) / lam[i+1]`` over the sorted non-zero eigenvalues (inf for fewer
+    than two): how close the spectrum comes to an exactly repeated eigenvalue."""
+    evals = np.asarray(evals, dtype=np.float64)
+    lam = np.sort(evals[evals > 1e-9 * max(float(np.max(evals, initial=0.0)), 1e-300)])
+    return float((np.diff(lam) / lam[1:]).min()) if lam.size > 1 else math.inf
+
+
 def _has_repeats(evals: np.ndarray, rel_tol: float = 1e-6) -> bool:
     """Whether two of the non-zero eigenvalues agree to ``rel_tol`` (an exact multiplicity)."""
-    lam = np.sort(evals[evals > 1e-9 * max(float(np.max(evals)), 1e-300)])
-    return bool(lam.size > 1 and (np.diff(lam) / lam[1:] < rel_tol).any())
+    return smallest_relative_gap(evals) < rel_tol
 
 
 def _missing_pairs(lu, mass: np.ndarray, sigma: float, evecs: np.ndarray, lam_max: float,

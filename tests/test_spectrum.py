@@ -401,12 +401,21 @@ def test_bands_from_sizes():
 
 @pytest.mark.parametrize("builder,k", [(lambda: polar_prism(3), 70), (lambda: icosphere(3), 30),
                                        (lambda: mirror_blob(3), 40)])
-def test_missing_pair_probe_runs_only_where_it_can_find_something(builder, k):
+def test_missing_pair_probe_runs_only_where_it_can_find_something(builder, k, monkeypatch):
     """The deflated probe is skipped when the solve found no exactly repeated eigenvalue (no exact
     symmetry: nothing for Lanczos to miss), and the result is the same as with the probe forced."""
     verts, faces = builder()
     W, mass = laplacian_matrices(verts, faces)
+    probes = []
+    real_probe = spectrum_mod._missing_pairs
+
+    def counting_probe(*args, **kw):
+        probes.append(1)
+        return real_probe(*args, **kw)
+
+    monkeypatch.setattr(spectrum_mod, "_missing_pairs", counting_probe)
     auto = generalized_eigsh(W, mass, k)
+    auto_probed = len(probes)
     forced = generalized_eigsh(W, mass, k, check_missing=True)
     np.testing.assert_allclose(auto[0], forced[0], rtol=1e-7, atol=1e-9)
     plain = generalized_eigsh(W, mass, k, check_missing=False)
@@ -416,3 +425,4 @@ def test_missing_pair_probe_runs_only_where_it_can_find_something(builder, k):
         np.testing.assert_allclose(plain[0], forced[0], rtol=1e-7, atol=1e-9)
     else:  # the polar prism and the sphere: the solve alone misses some, the probe adds them
         assert not np.allclose(plain[0], forced[0], rtol=1e-7, atol=1e-9)
+    assert (auto_probed > 0) == repeats  # the automatic choice probed exactly where repeats were found
