@@ -5,9 +5,11 @@ import logging
 import time
 import warnings
 
+import numpy as np
 import torch
 
 from ._checks import check_mesh
+from .geodesics import GeodesicSolver
 from .result import SymmetryResult
 from .sampling import count_components
 from .spectrum import Spectrum, laplacian_spectrum
@@ -110,9 +112,13 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
     timer.lap("spectrum")
     from .group_detect import detect_group, has_multiplicities, with_group
     from .reflect import detect_reflection
+    # one factorisation for both paths (the timer counts it in the first path's first stage); its
+    # fields are read back where the second path asks for a source the first one solved
+    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)
+
     def group_path():
         return detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                            timer=timer, device=batch_device).to(out_device)
+                            timer=timer, device=batch_device, solver=solver).to(out_device)
 
     grouped = None
     if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
@@ -121,7 +127,7 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
             return grouped
     reflected = detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
                                   n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
-                                  block_refine=block_refine, min_score=min_score, timer=timer)
+                                  block_refine=block_refine, min_score=min_score, solver=solver, timer=timer)
     result = with_group(reflected, verts, faces).to(out_device)
     if mode == "auto" and grouped is None and _several_involutions(reflected.info, group_tol):
         # a simple spectrum but several equally consistent involutions of the extrema: a group whose

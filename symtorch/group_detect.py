@@ -335,7 +335,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
                  bandwidth: float = 0.6, n_samples: int = 1000, max_distortion: float = 0.25,
                  refine: str = "zoomout", max_modes: int = 64, desc_tol: float = 0.6, n_icp: int = 3,
                  max_candidates: int = 400, device: torch.device | str | None = None,
-                 n_eigen: int = 60, timer=None) -> SymmetryResult:
+                 n_eigen: int = 60, solver: GeodesicSolver | None = None, timer=None) -> SymmetryResult:
     """Every symmetry of a mesh as a group (ALGORITHM §5); see the module docstring for the steps.
 
     Args:
@@ -364,6 +364,8 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
             descriptors, and so the candidate pruning, change with the number of eigenpairs; the
             n-gon prism gave D2h for D6h from 110 eigenpairs (the reflection path's default
             spectrum) and from 50, 70, 86 at the old ``desc_tol`` 0.25.
+        solver: a ``GeodesicSolver`` of the unit-area mesh (``verts * spectrum.scale``) to reuse
+            (``detect_symmetries`` shares one between the two paths); default one of its own.
         timer: optional ``detect._Timer``.
 
     Returns:
@@ -381,7 +383,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
         kf = k0
     m = max(len(b) for b in bands0)
     verts_unit = np.asarray(verts, dtype=np.float64) * spectrum.scale
-    solver = GeodesicSolver(verts_unit, faces)
+    solver = GeodesicSolver(verts_unit, faces) if solver is None else solver
     info: dict = {"path": "group", "k0": k0, "k_refine": kf, "m": m,
                   "bands0": [len(b) for b in bands0]}
     # 1. invariant points and their distance fields

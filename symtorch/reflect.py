@@ -323,7 +323,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
                       n_local: int = 64, w_guide: float = 1.0, compare_ratio: float = 2.0,
                       verify: str = "involution", n_iter_all: int = 0, step_refine: int = 12,
                       max_descriptor_gap: float = 0.4, prune_k: int = 14, prune_vote: float = 0.3,
-                      timer=None) -> SymmetryResult:
+                      solver: GeodesicSolver | None = None, timer=None) -> SymmetryResult:
     """The identity and, where one exists, the intrinsic reflection of a mesh (see module doc).
 
     Args:
@@ -372,6 +372,9 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
             vertices: the same rates and errors on all four datasets (TOSCA 17.6 -> 17.8e-3,
             TOSCA_Isometric 33.4 -> 33.5), 0.05 s less.
 
+        solver: a ``GeodesicSolver`` of the unit-area mesh (``verts * spectrum.scale``) to reuse
+            (``detect_symmetries`` shares one between the two paths); default one of its own.
+
     Returns:
         SymmetryResult (``group`` left empty for the caller), on CPU.
     """
@@ -388,7 +391,7 @@ def detect_reflection(verts: Tensor, faces: Tensor, spectrum: Spectrum, *, k: in
     k0 = starts[-1]
     V = evecs.shape[0]
     verts_unit = torch.as_tensor(verts) * spectrum.scale
-    solver = GeodesicSolver(verts_unit, faces)
+    solver = GeodesicSolver(verts_unit, faces) if solver is None else solver
     ext, dist_ext = heat_extrema(evals, evecs, faces, solver, n_extrema, nms_radius)
     desc = descriptors(evals, evecs)  # [V, D]
     D_ext = dist_ext[:, ext].numpy()

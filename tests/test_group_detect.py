@@ -395,3 +395,31 @@ def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
     assert res.group["name"] == "C2v" and len(res.symmetries) == 4, res.info.get("group_path")
     assert sorted(s.kind for s in res.symmetries) == ["identity", "reflection", "reflection", "rotation"]
     assert detect_symmetries(v, f, group_tol=0).group["name"] == "Cs"  # the reflection path alone
+
+
+def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, monkeypatch):
+    """Watertight 152 goes through both paths (above); they share one heat-method factorisation."""
+    import symtorch.group_detect as group_detect
+    import symtorch.reflect as reflect
+    from symtorch.benchmarks import load_mesh
+
+    made, passed = [], []
+    real_init = GeodesicSolver.__init__
+
+    def counting_init(self, *a, **kw):
+        made.append(self)
+        real_init(self, *a, **kw)
+
+    def recording(fn):
+        def wrapped(*a, **kw):
+            passed.append(kw.get("solver"))
+            return fn(*a, **kw)
+        return wrapped
+
+    monkeypatch.setattr(GeodesicSolver, "__init__", counting_init)
+    monkeypatch.setattr(group_detect, "detect_group", recording(group_detect.detect_group))
+    monkeypatch.setattr(reflect, "detect_reflection", recording(reflect.detect_reflection))
+    v, f = load_mesh(shared_data / "bim_scb_benchmark" / "Watertight" / "Meshes" / "152.off")
+    res = detect_symmetries(v, f)
+    assert res.group["name"] == "C2v" and len(passed) == 2  # both paths ran
+    assert len(made) == 1 and passed[0] is made[0] and passed[1] is made[0]
