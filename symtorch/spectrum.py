@@ -20,6 +20,7 @@ import torch
 from torch import Tensor
 
 from ._checks import check_mesh, check_verts, to_numpy
+from .sparse_solve import SPDFactor
 
 log = logging.getLogger(__name__)
 
@@ -82,13 +83,14 @@ def laplacian_matrices(verts, faces=None, *, n_neighbors: int = 30,
 
 
 def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float = -1e-3,
-                      tol: float = 1e-8, retries: int = 3,
-                      check_missing: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      tol: float = 1e-8, retries: int = 3, check_missing: bool | None = None,
+                      solver: str = "cholmod") -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` smallest pairs of ``W phi = lambda M phi`` by shift-invert Lanczos.
 
-    One sparse LU factorisation of ``W - shift * M`` (``shift < 0`` keeps it positive definite, since W
-    is only semi-definite); on failure the shift is made ten times larger and the solve retried.
-    Runs in float64 on CPU.
+    One sparse factorisation of ``W - shift * M`` (``shift < 0`` keeps it positive definite, since W
+    is only semi-definite): CHOLMOD's Cholesky (``solver="cholmod"``, :class:`~symtorch.sparse_solve.SPDFactor`;
+    SuperLU where cholespy is missing or refuses the matrix) or SuperLU (``"superlu"``). On failure
+    the shift is made ten times larger and the solve retried. Runs in float64 on CPU.
 
     Exactly repeated eigenvalues (a mesh with exact symmetry) defeat single-vector Lanczos: its Krylov
     space holds one direction per eigenspace, so ARPACK can return 3 of a 5-fold eigenvalue and fill
@@ -114,7 +116,7 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     for attempt in range(retries + 1):
         sigma = shift * (10.0 ** attempt)
         try:
-            lu = sla.splu((W - sigma * M).tocsc(), permc_spec="COLAMD")
+            lu = SPDFactor(W - sigma * M, prefer=solver)
             op = sla.LinearOperator((V, V), matvec=lu.solve, dtype=np.float64)
             evals, evecs = sla.eigsh(W, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=tol,
                                      v0=v0)
