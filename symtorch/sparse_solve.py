@@ -37,7 +37,7 @@ class SPDFactor:
         self.n = A.shape[0]
         self._chol = None
         self._lu = None
-        if prefer == "cholmod":
+        if prefer == "cholmod" and max(A.nnz, self.n) < 2 ** 31:  # cholespy takes int32 indices
             # CSR, not CSC: cholespy 2.2's CSC input path corrupts the heap once its arrays are
             # freed (a crash within a few hundred small solves, tests/test_sparse_solve.py); its
             # CSR path copies them. They are kept alive with the factor all the same.
