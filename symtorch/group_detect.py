@@ -2,6 +2,8 @@
 
 Pipeline, every step automatic (no hand-typed bands, orbit or group size):
 
+Steps 1 and 2 live in :mod:`symtorch.group_candidates`.
+
 1. **Invariant points** ``P``: local maxima and minima of the heat kernel signature at three
    scales (``t = 4 ln10 / lambda_2`` times 1, 1/10, 1/50: limb tips down to corners), thinned by
    farthest-point suppression (no two kept points closer than ``nms_radius * eps`` on the unit-area
@@ -73,9 +75,10 @@ from torch import Tensor
 
 from .cluster import mean_shift
 from .constraints import descriptor_coefficients, disk_coefficients
-from .descriptors import descriptors, hks
+from .descriptors import descriptors
 from .eval import EPS_KLC
 from .geodesics import GeodesicSolver
+from .group_candidates import candidate_tuples, invariant_points, source_tuples
 from .group_maps import canonical_order, consistent_orientation, largest_subgroup
 from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
@@ -83,114 +86,10 @@ from .procrustes import block_procrustes, block_project
 from .maps import TwoLevelSearch, p2p_to_fmap
 from .refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
-from .sampling import farthest_point_sampling, local_maxima, vertex_adjacency
+from .sampling import farthest_point_sampling
 from .spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
 
 log = logging.getLogger(__name__)
-
-
-# ------------------------------------------------------------------------------------ points
-def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
-                     nms_radius: float = 1.0, scales=(1.0, 0.1, 0.02), per_scale: int = 40) -> np.ndarray:
-    """A symmetry-invariant point set: multi-scale HKS maxima and minima, thinned by farthest-point suppression.
-
-    Args:
-        evals: [K]; evecs: [V, K] of the unit-area shape.
-        faces: [F, 3].
-        verts_unit: [V, 3] unit-area vertex positions (for the suppression radius).
-        n_max: most points returned.
-        nms_radius: no two points closer than this many ``eps`` (Euclidean, unit area).
-        scales: HKS times as fractions of ``4 ln 10 / lambda_2``.
-        per_scale: maxima considered per scale (by decreasing value).
-
-    Returns:
-        [N] vertex ids, coarse scales first.
-    """
-    V = evecs.shape[0]
-    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
-    t0 = 4 * math.log(10) / float(lam[0])
-    h = hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))  # [V, T]
-    adj = vertex_adjacency(faces, V)
-    cand: list[int] = []
-    for col in range(h.shape[1]):
-        for sign in (1.0, -1.0):  # maxima (tips, convex corners), then minima (concave corners)
-            for v in local_maxima(sign * h[:, col].numpy(), adj, rings=2)[:per_scale]:
-                if int(v) not in cand:
-                    cand.append(int(v))
-    x = np.asarray(verts_unit)
-    keep: list[int] = []
-    r = nms_radius * EPS_KLC
-    for v in cand:
-        if not keep or np.linalg.norm(x[keep] - x[v], axis=1).min() > r:
-            keep.append(v)
-        if len(keep) == n_max:
-            break
-    return np.asarray(keep, dtype=np.int64)
-
-
-def _source_tuples(dist: np.ndarray, size: int, n_sources: int, usable: np.ndarray | None = None) -> list[list[int]]:
-    """Well-spread point tuples: geodesic farthest-point orders from different starting points.
-
-    ``usable`` [n] bool marks the points preferred in a tuple (those with a descriptor partner: a
-    point of P without one is either on every symmetry axis, or an extremum whose partners were
-    lost, which would leave the tuple with no image at all); others fill in when too few.
-    """
-    n = dist.shape[0]
-    ok = np.ones(n, dtype=bool) if usable is None or usable.sum() < size else usable
-    out: list[list[int]] = []
-    starts = [int(i) for i in np.argsort(-dist.sum(1)) if ok[i]]  # most eccentric first
-    for s in starts:
-        tup = [int(s)]
-        while len(tup) < min(size, n):
-            dmin = dist[tup].min(0)
-            dmin[tup] = -1
-            dmin[~ok] = -1
-            if dmin.max() < 0:
-                dmin = dist[tup].min(0)
-                dmin[tup] = -1
-            tup.append(int(dmin.argmax()))
-        if sorted(tup) not in [sorted(t) for t in out]:
-            out.append(tup)
-        if len(out) == n_sources:
-            break
-    return out
-
-
-def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delta: float = 0.9,
-                     slack: float = 0.5 * EPS_KLC, max_candidates: int = 20000) -> tuple[np.ndarray, int]:
-    """Ordered target tuples ``q`` for a source tuple ``p`` that keep geodesic distances (ALGORITHM §5.2).
-
-    Enumerated level by level (all targets for ``p_1``, extended by all targets for ``p_2``, ...),
-    dropping a partial tuple as soon as ``|d(p_i, p_j) - d(q_i, q_j)| > (1 - delta) max(...) + slack``
-    (the ratio test with a slack for short distances) or ``allowed[p_i, q_i]`` is False.
-
-    Args:
-        src: [t] indices into the point set.
-        dist: [n, n] geodesic distances between the points.
-        allowed: [n, n] bool descriptor agreement.
-
-    Returns:
-        ([N, t] target tuples, number of ordered tuples before pruning).
-    """
-    n, t = dist.shape[0], len(src)
-    total = math.perm(n, t)
-    part = np.flatnonzero(allowed[src[0]])[:, None]  # [N, 1]
-    for j in range(1, t):
-        q = np.flatnonzero(allowed[src[j]])
-        if len(part) == 0 or len(q) == 0:
-            return np.zeros((0, t), dtype=np.int64), total
-        dp = dist[src[:j], src[j]]  # [j]
-        dq = dist[part][:, :, q]  # [N, j, nq]
-        lim = (1 - delta) * np.maximum(dq, dp[None, :, None]) + slack
-        ok = (np.abs(dq - dp[None, :, None]) <= lim).all(1)  # [N, nq]
-        ok &= (part[:, :, None] != q[None, None, :]).all(1)  # distinct targets
-        a, b = np.nonzero(ok)
-        part = np.concatenate([part[a], q[b, None]], 1)
-        if len(part) > max_candidates:
-            warnings.warn(f"{len(part)} partial candidates; keeping {max_candidates} (continuous "
-                          "symmetry or a point set with little structure)", stacklevel=2)
-            part = part[:max_candidates]
-    return part, total
 
 
 # ---------------------------------------------------------------------------------- refinement
@@ -429,7 +328,7 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
     allowed &= dist_profile_agree | np.eye(len(pts), dtype=bool)
     partner = allowed.sum(1) > 1
     info["n_points_with_partner"] = int(partner.sum())
-    srcs = _source_tuples(dist, t, n_sources, partner)
+    srcs = source_tuples(dist, t, n_sources, partner)
     tuples_src, tuples_dst, before = [], [], 0
     for src in srcs:
         q, tot = candidate_tuples(src, dist, allowed, delta)

@@ -13,7 +13,7 @@ from symtorch.detect import detect_symmetries
 from symtorch.eval import klc_threshold
 from symtorch.geodesics import GeodesicSolver
 from symtorch.cluster import mean_shift
-from symtorch.group_detect import candidate_tuples, has_multiplicities
+from symtorch.group_detect import has_multiplicities
 from symtorch.group_maps import canonical_order, consistent_orientation, largest_subgroup
 from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates
 from symtorch.groups import check_group
@@ -55,21 +55,6 @@ def test_mean_shift_finds_three_modes():
         assert len(set(labels[20 * j:20 * (j + 1)].tolist())) == 1
         m = modes[labels[20 * j]]
         assert float((m - centres[j]).norm()) < 0.1
-
-
-def test_candidate_tuples_keep_distance_preserving_targets():
-    # four corners of a unit square plus its centre: the 8 symmetries of the square move a source
-    # tuple (corner, corner, centre) to exactly 8 targets
-    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=np.float64)
-    dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
-    allowed = np.ones((5, 5), dtype=bool)
-    q, total = candidate_tuples([0, 1, 4], dist, allowed, delta=0.9, slack=0.0)
-    assert total == 5 * 4 * 3
-    assert len(q) == 8, q
-    assert (q[:, 2] == 4).all()  # the centre maps to itself
-    allowed[4, 4] = False  # descriptors forbid the centre from staying: nothing survives
-    q, _ = candidate_tuples([0, 1, 4], dist, allowed, delta=0.9, slack=0.0)
-    assert len(q) == 0
 
 
 def test_has_multiplicities():

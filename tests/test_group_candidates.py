@@ -1,0 +1,55 @@
+"""Tests for symtorch.group_candidates: invariant points, source tuples, pruned target tuples."""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from symtorch import shapes
+from symtorch.eval import EPS_KLC
+from symtorch.group_candidates import candidate_tuples, invariant_points, source_tuples
+from symtorch.spectrum import laplacian_spectrum
+
+
+def test_candidate_tuples_keep_distance_preserving_targets():
+    # four corners of a unit square plus its centre: the 8 symmetries of the square move a source
+    # tuple (corner, corner, centre) to exactly 8 targets
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=np.float64)
+    dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    allowed = np.ones((5, 5), dtype=bool)
+    q, total = candidate_tuples([0, 1, 4], dist, allowed, delta=0.9, slack=0.0)
+    assert total == 5 * 4 * 3
+    assert len(q) == 8, q
+    assert (q[:, 2] == 4).all()  # the centre maps to itself
+    allowed[4, 4] = False  # descriptors forbid the centre from staying: nothing survives
+    q, _ = candidate_tuples([0, 1, 4], dist, allowed, delta=0.9, slack=0.0)
+    assert len(q) == 0
+
+
+def test_invariant_points_are_mapped_onto_themselves_by_the_symmetries():
+    """P is a union of orbits: every true symmetry sends each point of P near a point of P."""
+    v, f = shapes.star_prism(subdivisions=3)
+    spec = laplacian_spectrum(v, f, k=40)
+    unit = v * spec.scale
+    pts = invariant_points(spec.evals, spec.evecs, f, unit, n_max=40)
+    assert 10 <= len(pts) <= 40 and len(set(pts.tolist())) == len(pts)
+    tree = cKDTree(unit[pts])
+    for g in shapes.symmetry_maps(v, shapes.true_symmetries("star_prism")):
+        d, _ = tree.query(unit[g[pts]])
+        # the mesh is only approximately symmetric (the true maps are nearest vertices of a rigid
+        # motion, an edge off): within the KLC tolerance, while points of P are >= 1 eps apart
+        assert d.max() < EPS_KLC and d.mean() < 0.5 * EPS_KLC, d
+
+
+def test_source_tuples_are_spread_distinct_and_prefer_usable_points():
+    rng = np.random.default_rng(0)
+    x = rng.random((12, 3))
+    dist = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    out = source_tuples(dist, 4, 3)
+    assert len(out) == 3 and all(len(t) == 4 and len(set(t)) == 4 for t in out)
+    assert len({tuple(sorted(t)) for t in out}) == 3
+    first = out[0]
+    assert first[0] == int(np.argmax(dist.sum(1)))  # the most eccentric point starts
+    assert first[1] == int(np.argmax(dist[first[0]]))  # then the farthest from it
+    usable = np.zeros(12, dtype=bool)
+    usable[[1, 3, 5, 7, 9]] = True
+    assert all(set(t) <= {1, 3, 5, 7, 9} for t in source_tuples(dist, 4, 3, usable))
