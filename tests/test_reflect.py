@@ -11,8 +11,7 @@ from symtorch import detect_symmetries, laplacian_spectrum
 from symtorch.cli import main as cli_main
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import p2p_to_fmap
-from symtorch.reflect import (EPS_KLC, extend_involution, involution_candidates, orientation_vote,
-                              seed_pairs, vertex_normals)
+from symtorch.reflect import orientation_vote, vertex_normals
 from symtorch.sampling import farthest_point_sampling
 from symtorch.shapes import asymmetric, mirror_blob, symmetry_maps, true_symmetries
 
@@ -81,36 +80,6 @@ def test_orientation_vote_separates_reflection_from_identity(blob):
     batch = torch.stack([torch.arange(len(v)), mirror])
     votes = orientation_vote(batch, v, vn, S)
     assert votes.shape == (2,) and votes[0] > 0.9 and votes[1] < -0.9
-
-
-def _tips():
-    # five points of a symmetric "star figure": a head on the axis, two mirrored pairs of limbs
-    pts = np.array([[0, 3.0], [-2, 1], [2, 1], [-1, -2], [1, -2]])
-    dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1) * EPS_KLC
-    desc = np.array([[0.0], [1.0], [1.0], [2.0], [2.0]])
-    return dist, desc
-
-
-def test_extend_involution_completes_the_permutation():
-    dist, desc = _tips()
-    allowed = np.ones((5, 5), dtype=bool)
-    perm = extend_involution(((1, 2), (3, 4)), dist, allowed, tol=0.5 * EPS_KLC)
-    assert perm.tolist() == [0, 2, 1, 4, 3]  # the head is a fixed point
-    perm = extend_involution(((1, 2), (0, 0)), dist, allowed, tol=0.5 * EPS_KLC)
-    assert perm.tolist() == [0, 2, 1, 4, 3]
-
-
-def test_involution_candidates_rank_the_full_swap_first():
-    dist, desc = _tips()
-    seeds = seed_pairs(desc, dist)
-    assert seeds, "mirrored limbs make seeds"
-    perms, scores, n_seeds = involution_candidates(desc, dist)
-    assert n_seeds == len(seeds)
-    assert perms[0].tolist() == [0, 2, 1, 4, 3]
-    assert scores[0] == pytest.approx(0.0, abs=1e-9)
-    assert all(s > scores[0] for s in scores[1:])
-    # duplicates collapse: each permutation appears once
-    assert len({tuple(p) for p in perms}) == len(perms)
 
 
 def test_detect_accepts_a_precomputed_spectrum(blob):
