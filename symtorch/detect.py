@@ -77,7 +77,12 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
             verified group is kept. Measured: SCAPE 0 of 71 and FAUST 0 of 10 meshes take that
             second path, TOSCA 9 of 15 and TOSCA_Isometric 7 of 76 (quadrupeds; Cs either way),
             Watertight tables 143, 152, 156, 160 all four (``scripts/verification_stats.py`` for the
-            four datasets; 0 disables it). The group path uses a
+            four datasets; 0 disables it). The group path also runs where the reflection path
+            verifies no reflection: a lone half turn (C2, a two-bladed propeller) leaves the
+            spectrum simple and is no reflection, and a box or an elliptic cone has too few
+            heat-kernel extrema to pair (``iglict_intrinsicsym`` cube.obj: D2h, cone33.obj: C2v;
+            the reflection path alone gives C1). Every mesh of the four benchmarks has a verified
+            reflection, so none pays for it; an asymmetric shape does (C1 either way). The group path uses a
             coarse basis of ``max(k, 20)`` and refines every element to ``min(k_refine, 40)``
             (cost: one refinement per element). Either way ``result.group`` holds the group report
             (``groups.GroupInfo.to_dict()``) and each ``kind`` follows its order and orientation.
@@ -129,9 +134,12 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
                                   n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
                                   block_refine=block_refine, min_score=min_score, solver=solver, timer=timer)
     result = with_group(reflected, verts, faces).to(out_device)
-    if mode == "auto" and grouped is None and _several_involutions(reflected.info, group_tol):
+    no_reflection = len(reflected.symmetries) == 1
+    if mode == "auto" and grouped is None and (no_reflection or _several_involutions(reflected.info, group_tol)):
         # a simple spectrum but several equally consistent involutions of the extrema: a group whose
-        # irreducible representations are all 1-D (C2v, D2h) hides from the spectrum; ask the group path
+        # irreducible representations are all 1-D (C2v, D2h) hides from the spectrum; and where no
+        # reflection verified, a lone half turn (C2) or extrema too few to pair (a box) might: ask
+        # the group path
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")
             grouped = group_path()

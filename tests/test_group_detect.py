@@ -17,6 +17,7 @@ from symtorch.group_detect import has_multiplicities
 from symtorch.group_maps import canonical_order, consistent_orientation, largest_subgroup
 from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates
 from symtorch.groups import check_group
+from symtorch.spectrum import laplacian_spectrum
 
 SUB = 4  # 2562 vertices: the icosphere's triangulation is only approximately 5- or 6-fold symmetric
 
@@ -183,6 +184,51 @@ def test_auto_mode_chooses_the_path():
         res = detect_symmetries(v, f)  # mirror: the reflection path, with its group report
     assert res.group["name"] in ("Cs", "C1") and res.group["order"] == len(res.symmetries)
     assert res.symmetries[0].kind == "identity"
+
+
+def test_auto_mode_asks_the_group_path_where_no_reflection_verifies():
+    """A two-bladed propeller has a half turn and no mirror: its irreducible representations are
+    1-D, so the spectrum is simple and the automatic mode starts with the reflection path, which
+    finds no reflection; the group path then finds C2."""
+    v, f = shapes.propeller(subdivisions=3, blades=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert not has_multiplicities(laplacian_spectrum(v, f, k=60).evals)
+        res = detect_symmetries(v, f)
+        alone = detect_symmetries(v, f, mode="reflection")
+    assert len(alone.symmetries) == 1
+    assert res.group["name"] == "C2" and [s.kind for s in res.symmetries] == ["identity", "rotation"]
+    assert res.info.get("path") == "group"
+
+
+def _extrinsic_residual(verts, p2p):
+    """Largest (95th percentile) distance between verts[p2p] and the best orthogonal transform of
+    verts about their centroid, as a share of the bounding-box diagonal."""
+    x = verts - verts.mean(0)
+    y = x[p2p]
+    U, _, Vt = np.linalg.svd(x.T @ y)
+    res = np.linalg.norm(x @ (U @ Vt) - y, axis=1)
+    return float(np.percentile(res, 95) / np.linalg.norm(x.max(0) - x.min(0)))
+
+
+@pytest.mark.parametrize("name, group", [("cube", "D2h"), ("cone33", "C2v"), ("cone3", "C3v")])
+def test_auto_mode_on_the_iglict_shapes(shared_data, name, group):
+    """Qiao et al.'s exactly symmetric test shapes (a box, an elliptic cone, a three-fold cone): the
+    box and the elliptic cone have too few heat-kernel extrema for the reflection path to pair, so
+    the automatic mode finds their groups through the group path; every element is one of the
+    shape's rigid symmetries."""
+    from symtorch.io import read_mesh
+
+    path = shared_data / "iglict_intrinsicsym" / f"{name}.obj"
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    mesh = read_mesh(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = detect_symmetries(mesh)
+    assert res.group["name"] == group, res.info.get("group_path")
+    for s in res.symmetries:
+        assert _extrinsic_residual(mesh.verts, s.p2p.numpy()) < 0.02, s.kind
 
 
 def test_to_dict_and_cli_schema(tmp_path):
