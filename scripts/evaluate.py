@@ -8,8 +8,9 @@ method wall and CPU time (CPU time is steadier on a shared machine; it sums thre
 rate above 0.75), mean normalised error ×1e-3, median method time.
 
 Ground truth: SCAPE / TOSCA sparse KLC10 pairs (fixed points scored, mapping to themselves);
-FAUST / TOSCA_Isometric dense BCICP pairs (``--max-pairs`` evenly spaced ones, default 1000, to keep
-scoring fast: one heat solve per unique true image); Watertight orbits (``symtorch.eval.orbit_errors``;
+FAUST / TOSCA_Isometric dense BCICP pairs and TOSCA_dense (the 15 TOSCA meshes with FmapLib's dense
+maps; michael and wolf: the involutive entries) (``--max-pairs`` evenly spaced ones, default 1000, to
+keep scoring fast: one heat solve per unique true image); Watertight orbits (``symtorch.eval.orbit_errors``;
 the two vases have none and are skipped).
 
 For ``--method symtorch`` the scored symmetry is the first reflection of

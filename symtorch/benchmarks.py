@@ -7,6 +7,7 @@ Index bases on disk (checked by geometry in the data README):
 - BIM/SCB ``.pid`` and Watertight ``.vts``: 0-based vertex ids; ``.sym.info``: 0-based *feature*
   indices (lines of the ``.pid``/``.vts`` file).
 - BCICP ``corres/<name>.vts`` and ``<name>.sym.vts``: **1-based** vertex ids.
+- FmapLib TOSCA ``<class>.sym``: **1-based** vertex ids, one line per vertex.
 
 The data is academic-licensed and lives outside the package; where it is absent the loaders raise
 ``FileNotFoundError`` naming the missing file, so tests can skip.
@@ -21,7 +22,7 @@ import numpy as np
 
 from .paths import shared_data_dir
 
-__all__ = ["DATASETS", "load_klc_pairs", "load_orbits", "load_dense_pairs", "list_benchmark",
+__all__ = ["DATASETS", "load_klc_pairs", "load_orbits", "load_dense_pairs", "load_tosca_dense_pairs", "list_benchmark",
            "load_ground_truth", "load_mesh", "watertight_class", "GroundTruth"]
 
 #: dataset name -> (folder of meshes relative to shared/data, mesh file suffix)
@@ -31,16 +32,21 @@ DATASETS = {
     "Watertight": ("bim_scb_benchmark/Watertight/Meshes", ".off"),
     "FAUST": ("bcicp_5k/FAUST/vtx_5k", ".off"),
     "TOSCA_Isometric": ("bcicp_5k/TOSCA_Isometric/vtx_5k", ".off"),
+    "TOSCA_dense": ("bim_scb_benchmark/TOSCA/Meshes", ".off"),
 }
 _SPARSE = ("SCAPE", "TOSCA")
 _DENSE = ("FAUST", "TOSCA_Isometric")
+#: classes whose dense TOSCA map is only partly an involution (data README §2): their involutive
+#: entries are the ground truth
+_APPROXIMATE_TOSCA = ("michael", "wolf")
 
 
 class GroundTruth(NamedTuple):
     """Ground truth of one benchmark mesh.
 
     Attributes:
-        kind: ``"pairs"`` (SCAPE, TOSCA, FAUST, TOSCA_Isometric) or ``"orbits"`` (Watertight).
+        kind: ``"pairs"`` (SCAPE, TOSCA, FAUST, TOSCA_Isometric, TOSCA_dense) or ``"orbits"``
+            (Watertight).
         pairs: [P, 2] int64 vertex pairs ``(p, g*(p))`` for ``kind == "pairs"``, else None.
         orbits: list of int64 vertex-id arrays for ``kind == "orbits"``, else None.
     """
@@ -198,6 +204,28 @@ def load_dense_pairs(dataset: str, name: str) -> np.ndarray:
     return np.stack([a, b], axis=1)
 
 
+def load_tosca_dense_pairs(name: str) -> np.ndarray:
+    """Dense reflection pairs of a TOSCA high-resolution mesh (FmapLib's ``<class>.sym``).
+
+    Line ``i`` of ``tosca_dense_sym_fmaplib/<class>.sym`` holds the **1-based** vertex id of the
+    mirror image of vertex ``i``; one file serves every mesh of the class. For michael and wolf,
+    whose files are only partly involutive (data README §2), only the entries with
+    ``sym[sym[i]] == i`` are kept.
+
+    Returns:
+        [P, 2] int64 vertex ids ``(p, g*(p))``, 0-based, ``p`` ascending.
+    """
+    cls = _class_name(name)
+    path = _file("tosca_dense_sym_fmaplib", f"{cls}.sym")
+    sym = _first_column(path) - 1
+    if sym.min() < 0 or sym.max() >= sym.size:
+        raise ValueError(f"{path}: vertex ids outside 1..{sym.size}")
+    src = np.arange(sym.size)
+    if cls in _APPROXIMATE_TOSCA:
+        src = src[sym[sym] == src]
+    return np.stack([src, sym[src]], axis=1)
+
+
 def _natural_key(name: str):
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
 
@@ -207,7 +235,8 @@ def list_benchmark(dataset: str) -> list[tuple[str, Path]]:
 
     Args:
         dataset: one of ``"SCAPE"``, ``"TOSCA"`` (bim_scb_benchmark), ``"Watertight"``,
-            ``"FAUST"``, ``"TOSCA_Isometric"`` (bcicp_5k).
+            ``"FAUST"``, ``"TOSCA_Isometric"`` (bcicp_5k), ``"TOSCA_dense"`` (the TOSCA meshes
+            with FmapLib's dense maps).
 
     Returns:
         list of ``(name, mesh_path)``; name is the file stem (``"mesh000"``, ``"cat0"``, ``"121"``).
@@ -230,6 +259,8 @@ def load_ground_truth(dataset: str, name: str, include_fixed: bool = True) -> Gr
         return GroundTruth("pairs", load_klc_pairs(dataset, name, include_fixed), None)
     if dataset in _DENSE:
         return GroundTruth("pairs", load_dense_pairs(dataset, name), None)
+    if dataset == "TOSCA_dense":
+        return GroundTruth("pairs", load_tosca_dense_pairs(name), None)
     return GroundTruth("orbits", None, load_orbits(name, include_fixed))
 
 

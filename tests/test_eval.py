@@ -157,6 +157,24 @@ def test_dense_pairs_in_range():
         assert pairs.shape == (5000, 2) and pairs.min() >= 0 and pairs.max() < len(verts), name
 
 
+def test_tosca_dense_pairs():
+    _need("tosca_dense_sym_fmaplib", "cat.sym")
+    _need("bim_scb_benchmark", "TOSCA", "Meshes", "cat0.off")
+    cat = bm.load_tosca_dense_pairs("cat0")
+    assert cat.shape == (27894, 2) and (cat[:, 0] == np.arange(27894)).all()
+    sym = cat[:, 1]
+    assert (sym[sym] == np.arange(27894)).all()  # an exact involution for the cat
+    assert bm.load_ground_truth("TOSCA_dense", "cat1").pairs.shape == (27894, 2)
+    wolf = bm.load_tosca_dense_pairs("wolf2")  # approximate file: its involutive entries only
+    full = dict(map(tuple, wolf))
+    assert 0.6 * 4344 < len(wolf) < 4344 and all(full[b] == a for a, b in wolf)
+    # the dense maps agree with the sparse KLC points to within a small share of the shape
+    verts, _ = bm.load_mesh(dict(bm.list_benchmark("TOSCA_dense"))["cat0"])
+    diag = np.linalg.norm(verts.max(0) - verts.min(0))
+    klc = bm.load_klc_pairs("TOSCA", "cat0")
+    assert np.median(np.linalg.norm(verts[sym[klc[:, 0]]] - verts[klc[:, 1]], axis=1)) < 0.02 * diag
+
+
 def test_watertight_orbits():
     _need("bim_scb_benchmark", "Watertight", "Corrs", "121.vts")
     assert [bm.watertight_class(i) for i in (1, 20, 21, 121, 142, 400)] == [1, 1, 2, 7, 8, 20]
