@@ -124,7 +124,7 @@ def test_list_benchmark_counts():
     _need("bcicp_5k")
     counts = {ds: len(bm.list_benchmark(ds)) for ds in bm.DATASETS}
     assert counts == {"SCAPE": 71, "TOSCA": 15, "Watertight": 60, "FAUST": 10,
-                      "TOSCA_Isometric": 76}
+                      "TOSCA_Isometric": 76, "TOSCA_dense": 15}
     names = [n for n, _ in bm.list_benchmark("TOSCA_Isometric")]
     assert names.index("cat2") < names.index("cat10")  # natural order
 
