@@ -5,7 +5,9 @@ about 280 times for 110 eigenpairs. CHOLMOD's supernodal Cholesky (through ``cho
 it) solves in a third to a quarter of the time of scipy's SuperLU: 0.27 against 0.79 ms a solve on a
 12.5K-vertex SCAPE mesh, 2.1 against 8.6 ms on a 52K-vertex TOSCA mesh, with the same accuracy
 (``python scripts/bench_spectrum.py``). SuperLU remains the fallback: where ``cholespy`` is not
-installed, and where CHOLMOD finds the matrix not positive definite.
+installed, and where CHOLMOD finds the matrix not positive definite (CHOLMOD then prints a warning
+line on stderr itself; the spectrum's shifted Laplacians never met that on the benchmarks or the
+malformed-input corpus of ``tests/test_hardening.py``).
 """
 from __future__ import annotations
 
