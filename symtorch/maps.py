@@ -150,8 +150,9 @@ class TwoLevelSearch:
         samples: [S] vertex ids; cells: [V] long, position in ``samples`` of each vertex's sample
             (``geodesics.voronoi_cells``, or the nearest sample in space); -1 anywhere, or
             ``n_local`` <= 0, means the full search.
-        table: look up every vertex's ``n_local`` spatial neighbours once (for shapes mapped many
-            times); else they are queried at each map's sample images.
+        table: look up the ``n_local`` spatial neighbours of every sample once (for shapes mapped
+            many times: the images of the samples are samples); else they are queried at each
+            map's sample images.
     """
 
     def __init__(self, verts, evecs: Tensor, samples: Tensor, cells: Tensor, n_local: int, table: bool = False):
@@ -165,9 +166,9 @@ class TwoLevelSearch:
         self.tree = None if self.full else cKDTree(self.verts)
         self.n_local = min(n_local, V)
         self.table = None
-        if table and not self.full:
-            _, nb = self.tree.query(self.verts, k=self.n_local)
-            self.table = torch.as_tensor(np.asarray(nb).reshape(V, -1), device=evecs.device)
+        if table and not self.full:  # [S, n_local]: only samples are ever looked up
+            _, nb = self.tree.query(self.verts[self.samples.cpu().numpy()], k=self.n_local)
+            self.table = torch.as_tensor(np.asarray(nb).reshape(len(samples), -1), device=evecs.device)
 
     def __call__(self, C: Tensor, at: Tensor | None = None) -> Tensor:
         """Images of the vertices ``at`` (default all) under ``C [k, k]``: [N] long."""
@@ -177,9 +178,10 @@ class TwoLevelSearch:
         if self.full:
             return nearest_neighbors(E[at] @ C, E)
         Es = E[self.samples]
-        img = self.samples[nearest_neighbors(Es @ C, Es)]  # [S] images of the samples
+        pos = nearest_neighbors(Es @ C, Es)  # [S] images of the samples, as positions in samples
+        img = self.samples[pos]
         if self.table is not None:
-            near = self.table[img]
+            near = self.table[pos]
         else:
             _, nb = self.tree.query(self.verts[img.cpu().numpy()], k=self.n_local)
             near = torch.as_tensor(np.asarray(nb).reshape(len(img), -1), device=E.device)
