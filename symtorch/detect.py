@@ -121,9 +121,10 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
     # fields are read back where the second path asks for a source the first one solved
     solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)
 
-    def group_path():
+    def group_path(min_order: int = 1):
         return detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                            timer=timer, device=batch_device, solver=solver).to(out_device)
+                            timer=timer, device=batch_device, solver=solver,
+                            min_order=min_order).to(out_device)
 
     grouped = None
     if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
@@ -142,8 +143,11 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
         # the group path
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")
-            grouped = group_path()
+            # only a group larger than the reflection path's can replace its result
+            grouped = group_path(min_order=result.group["order"] + 1)
         result.info["group_path"] = {"name": grouped.group["name"], "order": grouped.group["order"]}
+        if "reason" in grouped.info:
+            result.info["group_path"]["reason"] = grouped.info["reason"]
         result.timings.update(timer.timings)  # the second opinion's stages count too
     if grouped is not None and grouped.group["order"] > result.group["order"]:
         return grouped

@@ -234,7 +234,8 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
                  bandwidth: float = 0.6, n_samples: int = 1000, max_distortion: float = 0.25,
                  refine: str = "zoomout", max_modes: int = 64, desc_tol: float = 0.6, n_icp: int = 3,
                  max_candidates: int = 400, device: torch.device | str | None = None,
-                 n_eigen: int = 60, solver: GeodesicSolver | None = None, timer=None) -> SymmetryResult:
+                 n_eigen: int = 60, solver: GeodesicSolver | None = None, min_order: int = 1,
+                 timer=None) -> SymmetryResult:
     """Every symmetry of a mesh as a group (ALGORITHM §5); see the module docstring for the steps.
 
     Args:
@@ -265,6 +266,10 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
             spectrum) and from 50, 70, 86 at the old ``desc_tol`` 0.25.
         solver: a ``GeodesicSolver`` of the unit-area mesh (``verts * spectrum.scale``) to reuse
             (``detect_symmetries`` shares one between the two paths); default one of its own.
+        min_order: the caller only wants a group of at least this order (a second opinion after
+            the reflection path found a mirror: 3). Where the coarse stage verifies fewer elements
+            than that, the exact stage cannot find more, and the trivial group is returned at once
+            (``info["reason"]`` says so) instead of upsampling and measuring them.
         timer: optional ``detect._Timer``.
 
     Returns:
@@ -433,6 +438,9 @@ def detect_group(verts: np.ndarray, faces: np.ndarray, spectrum: Spectrum, *, k:
             break
     info["n_after_closure"] = len(elems)
     lap("closure")
+    if len(elems) < min_order:  # the largest subgroup of these elements has at most len(elems)
+        return trivial(False, f"{len(elems)} elements verified in the coarse basis, fewer than the "
+                              f"{min_order} asked for")
     # stage B: upsample the distinct elements, map every vertex, measure again -- now exactly:
     # |d(g(s), g(x)) - d(s, x)| from 10 spread sources s (one heat solve per image g(s))
     src = geo.samples[:10].numpy()

@@ -454,3 +454,18 @@ def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, 
     res = detect_symmetries(v, f)
     assert res.group["name"] == "C2v" and len(passed) == 2  # both paths ran
     assert len(made) == 1 and passed[0] is made[0] and passed[1] is made[0]
+
+
+def test_min_order_stops_after_the_coarse_stage():
+    """A second opinion asks for more than the reflection path's two elements: where the coarse
+    stage verifies only the mirror, the group path stops there instead of upsampling it."""
+    from symtorch.group_detect import detect_group
+
+    v, f = shapes.mirror_blob(3)
+    spec = laplacian_spectrum(v, f, k=60)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        full = detect_group(v, f, spec, k=20, k_refine=40)
+        asked = detect_group(v, f, spec, k=20, k_refine=40, min_order=3)
+    assert full.group["name"] == "Cs" and full.info["n_after_closure"] == 2
+    assert asked.group["order"] == 1 and "fewer than the 3 asked for" in asked.info["reason"]
