@@ -1,8 +1,7 @@
 """Whole finite symmetry groups: rotations and reflections together (ALGORITHM §5; Wang & Huang 2017 §4.2).
 
-Pipeline, every step automatic (no hand-typed bands, orbit or group size):
-
-Steps 1 and 2 live in :mod:`symtorch.group_candidates`.
+Pipeline, every step automatic (no hand-typed bands, orbit or group size; steps 1 and 2 live in
+:mod:`symtorch.group_candidates`):
 
 1. **Invariant points** ``P``: local maxima and minima of the heat kernel signature at three
    scales (``t = 4 ln10 / lambda_2`` times 1, 1/10, 1/50: limb tips down to corners), thinned by

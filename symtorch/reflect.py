@@ -3,8 +3,8 @@ real, posed meshes.
 
 Pipeline (stage names as in ``SymmetryResult.timings``):
 
-1. **candidates** (``symtorch.involutions``) — heat-kernel maxima at ``t = 4 ln 10 / λ2`` and ``t/4`` (limb tips), thinned by
-   geodesic non-maximum suppression. Seeds: two mutually symmetric pairs chosen by descriptor
+1. **candidates** (``symtorch.involutions``) — heat-kernel maxima at ``t = 4 ln 10 / λ2`` and
+   ``t/4`` (limb tips), thinned by geodesic non-maximum suppression. Seeds: two mutually symmetric pairs chosen by descriptor
    closeness and geodesic consistency (the paper's step). Each seed is then *extended to an
    involutive permutation of all extrema*: every other extremum takes the partner (possibly itself)
    whose geodesic distances to the already-paired extrema agree best. Seeds giving the same
