@@ -26,7 +26,7 @@ from symtorch import shapes
 from symtorch.detect import detect_symmetries
 from symtorch.eval import klc_threshold
 from symtorch.geodesics import GeodesicSolver
-from symtorch.group_eval import dihedral_orbit_errors, element_rates
+from symtorch.group_eval import dihedral_orbit_errors, element_rates, rigid_residual
 
 
 def bend(verts: np.ndarray, radius: float = 4.0) -> np.ndarray:
@@ -54,17 +54,6 @@ def table_off_truth(verts: np.ndarray) -> np.ndarray:
     mats += [mirror(n) for n in ([1, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, -1])]
     tree = cKDTree(verts)
     return np.stack([tree.query((verts - c) @ R.T + c)[1] for R in mats])
-
-
-def rigid_residual(verts: np.ndarray, p2p: np.ndarray) -> float:
-    """95th percentile distance between ``verts[p2p]`` and the best orthogonal transform of the
-    vertices about their centroid, as a share of the bounding-box diagonal: ~0 for a map that is
-    one of the shape's rigid symmetries."""
-    x = verts - verts.mean(0)
-    y = x[p2p]
-    U, _, Vt = np.linalg.svd(x.T @ y)
-    res = np.linalg.norm(x @ (U @ Vt) - y, axis=1)
-    return float(np.percentile(res, 95) / np.linalg.norm(x.max(0) - x.min(0)))
 
 
 def run(name, verts, faces, expected, truth=None, orbits=None, rigid=False):

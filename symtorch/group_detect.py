@@ -140,8 +140,7 @@ class _Geometry:
 
         _, ns = cKDTree(verts_unit[self.samples.numpy()]).query(verts_unit)
         c = min(max(2 * V // max(len(self.samples), 1), 12), V)
-        self.search = TwoLevelSearch(verts_unit, self.evecs, self.samples, torch.as_tensor(np.asarray(ns)), c,
-                                     table=True)
+        self.search = TwoLevelSearch(verts_unit, self.evecs, self.samples, torch.as_tensor(np.asarray(ns)), c)
 
     def p2p(self, C: Tensor, at: Tensor | None = None) -> Tensor:
         """Vertex map of C [k, k] at the vertices ``at`` (default all): ``maps.TwoLevelSearch``."""

@@ -13,6 +13,8 @@ Protocol, pinned:
   that permutation; fixed points (orbits of size 1) must map to themselves. Unlike
   :func:`symtorch.eval.orbit_errors`, an element may fix orbit points (a diagonal mirror of a square
   table fixes two corners).
+- Rigid truth (shapes whose symmetries are rigid motions, e.g. Qiao et al.'s box and cones): an
+  element is scored by :func:`rigid_residual`, how far its map is from the best rigid motion.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from torch import Tensor
 from .eval import klc_threshold, score_group
 from .geodesics import GeodesicSolver
 
-__all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates"]
+__all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates", "rigid_residual"]
 
 
 def dihedral_permutations(n: int) -> np.ndarray:
@@ -72,3 +74,21 @@ def element_rates(solver: GeodesicSolver, true_maps, detected_maps, n_points: in
         err = D[np.arange(len(pts)), Dm[d][pts]]
         rates[t] = float((err < eps).mean())
     return sc, rates
+
+
+def rigid_residual(verts, p2p) -> float:
+    """How far a vertex map is from a rigid symmetry of the shape.
+
+    The best orthogonal transform ``R`` (Procrustes) of the vertices about their centroid onto their
+    images is fitted; returned is the 95th percentile of ``|x R - g(x)|`` as a share of the
+    bounding-box diagonal: ~0 for a map that is one of the shape's rigid symmetries.
+
+    Args:
+        verts: [V, 3]; p2p: [V] the map.
+    """
+    x = np.asarray(verts, dtype=np.float64)
+    x = x - x.mean(0)
+    y = x[np.asarray(p2p)]
+    U, _, Vt = np.linalg.svd(x.T @ y)
+    res = np.linalg.norm(x @ (U @ Vt) - y, axis=1)
+    return float(np.percentile(res, 95) / np.linalg.norm(x.max(0) - x.min(0)))

@@ -143,32 +143,28 @@ class TwoLevelSearch:
     ``n_local`` vertices nearest in space to the image of its own sample (its ``cells`` entry):
     V * n_local distances instead of V * V. An isometry is continuous and the samples lie much
     closer together than the accuracy asked of the map, so the answers are those of the full search
-    up to near-ties (``tests/test_maps.py``).
+    up to near-ties (``tests/test_maps.py``). The images of samples are samples, so each sample's
+    ``n_local`` spatial neighbours are looked up once, when the search is built.
 
     Args:
         verts: [V, 3] positions; evecs: [V, K] the embedding (searched in float32 at the vertex level).
         samples: [S] vertex ids; cells: [V] long, position in ``samples`` of each vertex's sample
             (``geodesics.voronoi_cells``, or the nearest sample in space); -1 anywhere, or
             ``n_local`` <= 0, means the full search.
-        table: look up the ``n_local`` spatial neighbours of every sample once (for shapes mapped
-            many times: the images of the samples are samples); else they are queried at each
-            map's sample images.
     """
 
-    def __init__(self, verts, evecs: Tensor, samples: Tensor, cells: Tensor, n_local: int, table: bool = False):
+    def __init__(self, verts, evecs: Tensor, samples: Tensor, cells: Tensor, n_local: int):
         from scipy.spatial import cKDTree
 
         V = evecs.shape[0]
         self.evecs, self.evecs32 = evecs, evecs.float()
         self.samples, self.cells = samples.to(evecs.device), cells.to(evecs.device)
         self.full = n_local <= 0 or n_local >= V or bool((cells < 0).any())
-        self.verts = to_numpy(verts)
-        self.tree = None if self.full else cKDTree(self.verts)
-        self.n_local = min(n_local, V)
-        self.table = None
-        if table and not self.full:  # [S, n_local]: only samples are ever looked up
-            _, nb = self.tree.query(self.verts[self.samples.cpu().numpy()], k=self.n_local)
-            self.table = torch.as_tensor(np.asarray(nb).reshape(len(samples), -1), device=evecs.device)
+        self.near = None  # [S, n_local] the spatial neighbours of each sample
+        if not self.full:
+            x = to_numpy(verts)
+            _, nb = cKDTree(x).query(x[self.samples.cpu().numpy()], k=n_local)
+            self.near = torch.as_tensor(np.asarray(nb).reshape(len(samples), -1), device=evecs.device)
 
     def __call__(self, C: Tensor, at: Tensor | None = None) -> Tensor:
         """Images of the vertices ``at`` (default all) under ``C [k, k]``: [N] long."""
@@ -179,10 +175,4 @@ class TwoLevelSearch:
             return nearest_neighbors(E[at] @ C, E)
         Es = E[self.samples]
         pos = nearest_neighbors(Es @ C, Es)  # [S] images of the samples, as positions in samples
-        img = self.samples[pos]
-        if self.table is not None:
-            near = self.table[pos]
-        else:
-            _, nb = self.tree.query(self.verts[img.cpu().numpy()], k=self.n_local)
-            near = torch.as_tensor(np.asarray(nb).reshape(len(img), -1), device=E.device)
-        return nearest_neighbors_among((E[at] @ C).float(), self.evecs32[:, :k], near, self.cells[at])
+        return nearest_neighbors_among((E[at] @ C).float(), self.evecs32[:, :k], self.near[pos], self.cells[at])

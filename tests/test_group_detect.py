@@ -15,7 +15,7 @@ from symtorch.geodesics import GeodesicSolver
 from symtorch.cluster import mean_shift
 from symtorch.group_detect import has_multiplicities
 from symtorch.group_maps import canonical_order, consistent_orientation, largest_subgroup
-from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates
+from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates, rigid_residual
 from symtorch.groups import check_group
 from symtorch.spectrum import laplacian_spectrum
 
@@ -62,6 +62,14 @@ def test_has_multiplicities():
     assert has_multiplicities(torch.tensor([0.0, 1, 1, 2, 3, 3, 5, 7, 7, 9, 11, 11, 13, 15, 15, 17,
                                             19, 19, 21, 23, 23.0]))
     assert not has_multiplicities(torch.arange(25, dtype=torch.float64))
+
+
+def test_rigid_residual_is_zero_for_a_rigid_symmetry_only():
+    v, _ = shapes.polar_prism(5)  # exactly D5h, triangulation included
+    maps = shapes.symmetry_maps(v, shapes.polar_prism_symmetries(5))
+    assert max(rigid_residual(v, p) for p in maps) < 1e-6
+    scrambled = np.random.default_rng(0).permutation(len(v))
+    assert rigid_residual(v, scrambled) > 0.3
 
 
 def test_dihedral_permutations():
@@ -201,16 +209,6 @@ def test_auto_mode_asks_the_group_path_where_no_reflection_verifies():
     assert res.info.get("path") == "group"
 
 
-def _extrinsic_residual(verts, p2p):
-    """Largest (95th percentile) distance between verts[p2p] and the best orthogonal transform of
-    verts about their centroid, as a share of the bounding-box diagonal."""
-    x = verts - verts.mean(0)
-    y = x[p2p]
-    U, _, Vt = np.linalg.svd(x.T @ y)
-    res = np.linalg.norm(x @ (U @ Vt) - y, axis=1)
-    return float(np.percentile(res, 95) / np.linalg.norm(x.max(0) - x.min(0)))
-
-
 @pytest.mark.parametrize("name, group", [("cube", "D2h"), ("cone33", "C2v"), ("cone3", "C3v")])
 def test_auto_mode_on_the_iglict_shapes(shared_data, name, group):
     """Qiao et al.'s exactly symmetric test shapes (a box, an elliptic cone, a three-fold cone): the
@@ -228,7 +226,7 @@ def test_auto_mode_on_the_iglict_shapes(shared_data, name, group):
         res = detect_symmetries(mesh)
     assert res.group["name"] == group, res.info.get("group_path")
     for s in res.symmetries:
-        assert _extrinsic_residual(mesh.verts, s.p2p.numpy()) < 0.02, s.kind
+        assert rigid_residual(mesh.verts, s.p2p.numpy()) < 0.02, s.kind
 
 
 def test_to_dict_and_cli_schema(tmp_path):

@@ -167,12 +167,11 @@ def test_two_level_search_agrees_with_the_full_search(mirror):
     full = fmap_to_p2p(C, s.evecs[:, :K])
     samples = farthest_point_sampling(vu, 150)
     cells = voronoi_cells(vu, faces, samples)
-    for table in (False, True):
-        local = TwoLevelSearch(vu, s.evecs, samples, cells, 24, table=table)(C)
-        assert float((local == full).double().mean()) > 0.97
-        assert float((local == perm).double().mean()) >= float((full == perm).double().mean()) - 0.01
-        at = torch.arange(0, len(vu), 7)
-        assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, cells, 24, table=table)(C, at), local[at])
+    local = TwoLevelSearch(vu, s.evecs, samples, cells, 24)(C)
+    assert float((local == full).double().mean()) > 0.97
+    assert float((local == perm).double().mean()) >= float((full == perm).double().mean()) - 0.01
+    at = torch.arange(0, len(vu), 7)
+    assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, cells, 24)(C, at), local[at])
     # no local search: a cell without a sample, or n_local 0
     no_cell = torch.full_like(cells, -1)
     assert torch.equal(TwoLevelSearch(vu, s.evecs, samples, no_cell, 24)(C), full)
