@@ -22,7 +22,7 @@ from collections import Counter
 
 import numpy as np
 
-from symtorch.benchmarks import DATASETS, list_benchmark, load_mesh
+from symtorch.eval.benchmarks import DATASETS, list_benchmark, load_mesh
 from symtorch.cache import cached_spectrum
 from symtorch.spectrum import eigen_bands, laplacian_spectrum
 

@@ -114,7 +114,7 @@ def main() -> None:
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from symtorch.benchmarks import load_mesh
+    from symtorch.eval.benchmarks import load_mesh
 
     verts, faces = load_mesh(args.mesh)
     timings: dict = {}

@@ -18,7 +18,7 @@ import warnings
 import torch
 
 from symtorch import detect_symmetries
-from symtorch.benchmarks import DATASETS, list_benchmark, load_mesh
+from symtorch.eval.benchmarks import DATASETS, list_benchmark, load_mesh
 
 
 def main(argv=None) -> int:

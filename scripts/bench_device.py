@@ -30,7 +30,7 @@ import torch
 from symtorch import shapes
 from symtorch.cluster import mean_shift
 from symtorch.detect import detect_symmetries
-from symtorch.group_detect import batched_icp
+from symtorch.detect.group_path import batched_icp
 from symtorch.losses import orthogonality_loss, symmetry_equivariance_loss
 from symtorch.maps import p2p_to_fmap
 from symtorch.procrustes import block_procrustes

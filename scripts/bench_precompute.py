@@ -19,7 +19,7 @@ import warnings
 from pathlib import Path
 
 from symtorch.paths import shared_path
-from symtorch.precompute import find_meshes, precompute
+from symtorch.data.precompute import find_meshes, precompute
 
 
 def main() -> None:

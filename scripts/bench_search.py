@@ -19,7 +19,7 @@ import warnings
 import torch
 from scipy.spatial import cKDTree
 
-from symtorch.benchmarks import list_benchmark, load_mesh
+from symtorch.eval.benchmarks import list_benchmark, load_mesh
 from symtorch.geodesics import voronoi_cells
 from symtorch.maps import TwoLevelSearch, nearest_neighbors, nearest_neighbors_among
 from symtorch.sampling import farthest_point_sampling

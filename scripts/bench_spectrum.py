@@ -27,7 +27,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 import torch
 
-from symtorch.benchmarks import list_benchmark, load_mesh
+from symtorch.eval.benchmarks import list_benchmark, load_mesh
 from symtorch.procrustes import block_procrustes
 from symtorch.spectrum import bands_from_sizes, generalized_eigsh, laplacian_matrices, laplacian_spectrum
 

@@ -24,7 +24,7 @@ measures of how isometric its dense map (nearest neighbour over all vertices) is
 
 A measure that could replace the distortion would rank the right candidate (rate near 1) first on
 the failing meshes and not break the others. Development tool; it wraps
-``symtorch.reflect.zoomout_symmetry`` to record the candidates' matrices.
+``symtorch.detect.reflection.zoomout_symmetry`` to record the candidates' matrices.
 """
 from __future__ import annotations
 
@@ -36,8 +36,8 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-import symtorch.reflect as reflect
-from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
+import symtorch.detect.reflection as reflect
+from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
 from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import nearest_neighbors, p2p_to_fmap

@@ -33,7 +33,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # for baseline_pyfm
 
-from symtorch.benchmarks import DATASETS, list_benchmark, load_ground_truth, load_mesh  # noqa: E402
+from symtorch.eval.benchmarks import DATASETS, list_benchmark, load_ground_truth, load_mesh  # noqa: E402
 from symtorch.eval import (evenly_spaced, geodesic_errors, klc_rates, mesh_rate, normalized_error,  # noqa: E402
                            orbit_errors)
 from symtorch.geodesics import GeodesicSolver  # noqa: E402

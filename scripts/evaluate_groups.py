@@ -3,7 +3,7 @@
     OMP_NUM_THREADS=1 nice -n 5 python scripts/evaluate_groups.py [--subdivisions 4] [--no-data]
 
 Prints one row per shape: expected group, found group, number of elements, per-element KLC10 rate
-(share of points within sqrt(area/(20 pi)) of the true image; see ``symtorch.group_eval``) and the
+(share of points within sqrt(area/(20 pi)) of the true image; see ``symtorch.eval.groups``) and the
 end-to-end time of ``detect_symmetries(mode='group')`` including the spectrum. Code-built shapes are
 scored against dense true maps (``shapes.symmetry_maps``), ``table.off`` against the maps of its
 extrinsic D4 (nearest neighbour after rotating about the vertical axis through the bounding-box
@@ -26,7 +26,7 @@ from symtorch import shapes
 from symtorch.detect import detect_symmetries
 from symtorch.eval import klc_threshold
 from symtorch.geodesics import GeodesicSolver
-from symtorch.group_eval import dihedral_orbit_errors, element_rates, rigid_residual
+from symtorch.eval.groups import dihedral_orbit_errors, element_rates, rigid_residual
 
 
 def bend(verts: np.ndarray, radius: float = 4.0) -> np.ndarray:
@@ -104,7 +104,7 @@ def main():
     run("sphere (sub 3)", v, f, "continuous")
     if args.no_data:
         return
-    from symtorch.benchmarks import load_mesh, load_orbits
+    from symtorch.eval.benchmarks import load_mesh, load_orbits
     from symtorch.paths import shared_data_dir
 
     root = shared_data_dir()

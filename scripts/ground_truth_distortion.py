@@ -20,11 +20,11 @@ import numpy as np
 import torch
 
 from symtorch import detect_symmetries
-from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
+from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
 from symtorch._checks import face_areas
 from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 from symtorch.geodesics import GeodesicSolver
-from symtorch.reflect import isometry_score
+from symtorch.detect.reflection import isometry_score
 
 
 def main(argv=None) -> int:

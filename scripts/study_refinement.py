@@ -24,7 +24,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from symtorch import laplacian_spectrum
-from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
+from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
 from symtorch.eval import evenly_spaced, geodesic_errors, normalized_error
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import nearest_neighbors, p2p_to_fmap

@@ -19,7 +19,7 @@ import warnings
 
 import numpy as np
 
-from symtorch.benchmarks import list_benchmark, load_mesh
+from symtorch.eval.benchmarks import list_benchmark, load_mesh
 from symtorch.detect import detect_symmetries
 from symtorch.eval import evenly_spaced
 from symtorch.spectrum import smallest_relative_gap

@@ -4,7 +4,7 @@ import math
 import torch
 
 from shapes import mirror_mesh
-from symtorch.constraints import DISK_RADII, descriptor_coefficients, disk_coefficients
+from symtorch.detect.constraints import DISK_RADII, descriptor_coefficients, disk_coefficients
 from symtorch.descriptors import descriptors
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import p2p_to_fmap

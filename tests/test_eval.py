@@ -6,7 +6,7 @@ import torch
 import trimesh
 from scipy.spatial import cKDTree
 
-from symtorch import benchmarks as bm
+from symtorch.eval import benchmarks as bm
 from symtorch.eval import (geodesic_errors, klc_rates, klc_threshold, mesh_rate, normalized_error,
                            orbit_errors, score_group)
 from symtorch.geodesics import GeodesicSolver

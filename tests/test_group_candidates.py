@@ -1,12 +1,12 @@
-"""Tests for symtorch.group_candidates: invariant points, source tuples, pruned target tuples."""
+"""Tests for symtorch.detect.candidates: invariant points, source tuples, pruned target tuples."""
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from symtorch import shapes
-from symtorch.eval import EPS_KLC
-from symtorch.group_candidates import candidate_tuples, invariant_points, source_tuples
+from symtorch.units import EPS_KLC
+from symtorch.detect.candidates import candidate_tuples, invariant_points, source_tuples
 from symtorch.spectrum import laplacian_spectrum
 
 

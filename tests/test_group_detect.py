@@ -1,4 +1,4 @@
-"""Whole symmetry groups (issue 4): symtorch.group_detect, the 'group'/'auto' modes of detect_symmetries."""
+"""Whole symmetry groups (issue 4): symtorch.detect.group_path, the 'group'/'auto' modes of detect_symmetries."""
 import json
 import warnings
 from itertools import permutations
@@ -13,9 +13,9 @@ from symtorch.detect import detect_symmetries
 from symtorch.eval import klc_threshold
 from symtorch.geodesics import GeodesicSolver
 from symtorch.cluster import mean_shift
-from symtorch.group_detect import has_multiplicities
-from symtorch.group_maps import canonical_order, consistent_orientation, largest_subgroup
-from symtorch.group_eval import dihedral_orbit_errors, dihedral_permutations, element_rates, rigid_residual
+from symtorch.detect.group_path import has_multiplicities
+from symtorch.groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
+from symtorch.eval.groups import dihedral_orbit_errors, dihedral_permutations, element_rates, rigid_residual
 from symtorch.groups import check_group
 from symtorch.spectrum import laplacian_spectrum
 
@@ -284,7 +284,7 @@ def _isomorphic_to_paper(table_paper: np.ndarray, reversing) -> bool:
 
 
 def test_paper_table_off(shared_data):
-    from symtorch.benchmarks import load_mesh
+    from symtorch.eval.benchmarks import load_mesh
 
     v, f = load_mesh(shared_data / "wang_huang_pg2017" / "table.off")
     res = _detect(v, f)
@@ -314,7 +314,7 @@ def test_watertight_orbits(shared_data, mesh_id):
     table 143 is square to within eps geodesically, but its spectrum splits the 2-dimensional
     eigenspaces of a quarter turn by ~14 %, so only its C2v subgroup is representable.
     """
-    from symtorch.benchmarks import load_mesh, load_orbits
+    from symtorch.eval.benchmarks import load_mesh, load_orbits
 
     v, f = load_mesh(shared_data / "bim_scb_benchmark" / "Watertight" / "Meshes" / f"{mesh_id}.off")
     orbits = load_orbits(mesh_id)
@@ -346,7 +346,7 @@ def test_mean_shift_on_device(cuda_device):
 
 def test_batched_icp_on_device(device):
     """Batched spectral ICP of perturbed quarter turns of the table: the CPU's matrices on ``device``."""
-    from symtorch.group_detect import batched_icp
+    from symtorch.detect.group_path import batched_icp
     from symtorch.maps import p2p_to_fmap
     from symtorch.spectrum import laplacian_spectrum, band_boundary, solved_bands
 
@@ -386,7 +386,7 @@ def test_group_path_batched_stages_on_device(device):
 def test_fixed_size_icp_refinement_finds_the_same_group():
     """refine='icp' (the paper's spectral ICP at a fixed size, through ``batched_icp``) instead of
     the band-by-band upsampling: the table's C4v, every element a true symmetry."""
-    from symtorch.group_detect import detect_group
+    from symtorch.detect.group_path import detect_group
     from symtorch.spectrum import laplacian_spectrum
 
     v, f = shapes.table(SUB)
@@ -417,7 +417,7 @@ def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
     """Watertight 152 (C2v: two mirrors and a half turn, all irreducible representations 1-D, so no
     repeated eigenvalues): the reflection path sees three equally consistent involutions of its
     extrema and the automatic mode asks the group path, which finds C2v."""
-    from symtorch.benchmarks import load_mesh
+    from symtorch.eval.benchmarks import load_mesh
 
     v, f = load_mesh(shared_data / "bim_scb_benchmark" / "Watertight" / "Meshes" / "152.off")
     res = detect_symmetries(v, f)
@@ -428,9 +428,9 @@ def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
 
 def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, monkeypatch):
     """Watertight 152 goes through both paths (above); they share one heat-method factorisation."""
-    import symtorch.group_detect as group_detect
-    import symtorch.reflect as reflect
-    from symtorch.benchmarks import load_mesh
+    import symtorch.detect.group_path as group_detect
+    import symtorch.detect.reflection as reflect
+    from symtorch.eval.benchmarks import load_mesh
 
     made, passed = [], []
     real_init = GeodesicSolver.__init__
@@ -457,7 +457,7 @@ def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, 
 def test_min_order_stops_after_the_coarse_stage():
     """A second opinion asks for more than the reflection path's two elements: where the coarse
     stage verifies only the mirror, the group path stops there instead of upsampling it."""
-    from symtorch.group_detect import detect_group
+    from symtorch.detect.group_path import detect_group
 
     v, f = shapes.mirror_blob(3)
     spec = laplacian_spectrum(v, f, k=60)

@@ -1,12 +1,12 @@
-"""Tests for symtorch.involutions: heat-kernel extrema and the involutive permutations of them."""
+"""Tests for symtorch.detect.involutions: heat-kernel extrema and the involutive permutations of them."""
 import numpy as np
 import pytest
 import torch
 
 from symtorch import laplacian_spectrum
-from symtorch.eval import EPS_KLC
+from symtorch.units import EPS_KLC
 from symtorch.geodesics import GeodesicSolver
-from symtorch.involutions import extend_involution, heat_extrema, involution_candidates, seed_pairs
+from symtorch.detect.involutions import extend_involution, heat_extrema, involution_candidates, seed_pairs
 from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
 
 

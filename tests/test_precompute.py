@@ -17,7 +17,7 @@ import symtorch.data.dataset as dataset_module
 from symtorch import cli, shapes
 from symtorch.data import MeshDataset
 from symtorch.io import write_mesh
-from symtorch.precompute import (FAILURES, SETTINGS, default_pre_transform, done_names,
+from symtorch.data.precompute import (FAILURES, SETTINGS, default_pre_transform, done_names,
                                  find_meshes, open_dataset, precompute)
 
 K = 6

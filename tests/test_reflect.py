@@ -1,4 +1,4 @@
-"""Reflective symmetry detection (symtorch.reflect, detect_symmetries(mode='reflection'))."""
+"""Reflective symmetry detection (symtorch.detect.reflection, detect_symmetries(mode='reflection'))."""
 import inspect
 import json
 import math
@@ -11,7 +11,7 @@ from symtorch import detect_symmetries, laplacian_spectrum
 from symtorch.cli import main as cli_main
 from symtorch.geodesics import GeodesicSolver
 from symtorch.maps import p2p_to_fmap
-from symtorch.reflect import orientation_vote, vertex_normals
+from symtorch.detect.reflection import orientation_vote, vertex_normals
 from symtorch.sampling import farthest_point_sampling
 from symtorch.shapes import asymmetric, mirror_blob, symmetry_maps, true_symmetries
 
@@ -57,7 +57,7 @@ def test_asymmetric_shape_gives_the_identity_alone(subdivisions):
 
 def test_descriptor_gap_is_zero_for_a_symmetry_and_large_for_a_scramble(blob):
     from symtorch.descriptors import descriptors
-    from symtorch.reflect import descriptor_gap
+    from symtorch.detect.reflection import descriptor_gap
 
     v, f, mirror = blob
     s = laplacian_spectrum(v, f, k=40)
@@ -121,7 +121,7 @@ def test_cli_detect_json_schema(tmp_path, capsys):
 
 
 def test_real_scape_mesh_end_to_end(shared_data):
-    from symtorch.benchmarks import list_benchmark, load_ground_truth, load_mesh
+    from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
     from symtorch.eval import geodesic_errors, klc_rates
     name, path = list_benchmark("SCAPE")[1]
     v, f = load_mesh(path)
@@ -135,7 +135,7 @@ def test_real_scape_mesh_end_to_end(shared_data):
 def test_the_papers_own_reflection_demo(shared_data):
     """Wang & Huang's demo horse (TOSCA horse15; their demo types in 20 eigenfunctions and their
     bands): found with nothing typed in, scored against FmapLib's dense map of the horse class."""
-    from symtorch.benchmarks import load_mesh, load_tosca_dense_pairs
+    from symtorch.eval.benchmarks import load_mesh, load_tosca_dense_pairs
     from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 
     path = shared_data / "wang_huang_pg2017" / "horse.off"
@@ -182,7 +182,7 @@ def test_several_coarse_starts(blob):
 
 
 def test_candidates_that_preserve_orientation_halfway_are_dropped(blob):
-    from symtorch.reflect import detect_reflection
+    from symtorch.detect.reflection import detect_reflection
 
     v, f, mirror = blob
     s = laplacian_spectrum(v, f, k=80)
@@ -197,7 +197,7 @@ def test_candidates_that_preserve_orientation_halfway_are_dropped(blob):
 
 
 def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
-    from symtorch.reflect import detect_reflection
+    from symtorch.detect.reflection import detect_reflection
 
     v, f, mirror = blob
     s = laplacian_spectrum(v, f, k=80)
@@ -214,7 +214,7 @@ def test_guided_second_selection_runs_only_when_nothing_verifies(blob):
 
 
 def test_nearly_as_consistent_candidates_are_all_compared():
-    from symtorch.reflect import detect_reflection
+    from symtorch.detect.reflection import detect_reflection
     from symtorch.shapes import star_prism
 
     v, f = (torch.as_tensor(x) for x in star_prism(3))  # D5h: several candidate involutions
@@ -270,7 +270,7 @@ def test_zoomout_symmetry_on_device(blob, cuda_device):
 
 
 def test_involution_distortion_needs_no_solve_and_tracks_the_isometry_score(blob):
-    from symtorch.reflect import involution_distortion, isometry_score
+    from symtorch.detect.reflection import involution_distortion, isometry_score
 
     v, f, mirror = blob
     v = v / math.sqrt(GeodesicSolver(v, f).area)  # unit area: distortions in KLC units

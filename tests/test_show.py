@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from symtorch import cli, shapes
-from symtorch.show import (colour_function, element_labels, export_glb, render_figure, save_png,
+from symtorch.cli.show import (colour_function, element_labels, export_glb, render_figure, save_png,
                            source_vertex, transfer)
 from shapes import mirror_mesh
 

@@ -362,7 +362,7 @@ def test_bands_on_three_scape_meshes(shared_data, tmp_path):
     one; see scripts/band_report.py and BENCHMARKS.md); the first three poses share their first five
     bands, which is pinned here as a regression check.
     """
-    from symtorch.benchmarks import list_benchmark, load_mesh
+    from symtorch.eval.benchmarks import list_benchmark, load_mesh
     from symtorch.cache import cached_spectrum
 
     structures = []

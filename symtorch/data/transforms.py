@@ -231,7 +231,7 @@ class DetectSymmetries:
         try:
             from .. import detect_symmetries
         except ImportError:
-            from ..detect import detect_symmetries
+            from ..detect.auto import detect_symmetries
         from ..spectrum import Spectrum
 
         _require(sample, ("verts", "faces"), type(self).__name__, "a triangle mesh")

@@ -3,7 +3,7 @@
 A symmetry maps the set ``P`` of multi-scale heat-kernel extrema onto itself (:func:`invariant_points`).
 Tuples of ``m + 1`` points of ``P`` pin every band of size ``m``: a few well-spread source tuples
 (:func:`source_tuples`) are paired with every ordered target tuple that keeps their geodesic distances
-and descriptors (:func:`candidate_tuples`), pruned level by level. ``symtorch.group_detect`` turns
+and descriptors (:func:`candidate_tuples`), pruned level by level. ``symtorch.detect.group_path`` turns
 each (source, target) pair into a matrix by one batched block Procrustes.
 """
 from __future__ import annotations
@@ -15,9 +15,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .descriptors import hks
-from .eval import EPS_KLC
-from .sampling import local_maxima, vertex_adjacency
+from ..descriptors import hks
+from ..units import EPS_KLC
+from ..sampling import local_maxima, vertex_adjacency
 
 __all__ = ["invariant_points", "source_tuples", "candidate_tuples"]
 

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .eval import klc_threshold, score_group
-from .geodesics import GeodesicSolver
+from .metrics import klc_threshold, score_group
+from ..geodesics import GeodesicSolver
 
 __all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates", "rigid_residual"]
 

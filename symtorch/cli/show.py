@@ -48,7 +48,7 @@ def source_vertex(verts: np.ndarray, p2ps: np.ndarray) -> int:
 def colour_function(verts: np.ndarray, faces: np.ndarray, source: int) -> np.ndarray:
     """[V] geodesic distance from ``source`` scaled to [0, 1] (heat method; graph distance fallback)."""
     try:
-        from .geodesics import GeodesicSolver
+        from ..geodesics import GeodesicSolver
 
         f = np.asarray(GeodesicSolver(verts, faces).distances_from([source]), dtype=np.float64)[0]
         if not np.isfinite(f).all():
@@ -285,7 +285,7 @@ def export_glb(path: str, verts, faces, p2ps, names: list[str], source: int | No
 
 
 def _write_atomic(path: str, data: bytes) -> None:
-    from .io import _write_bytes
+    from ..io import _write_bytes
 
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     _write_bytes(path, data)
@@ -297,13 +297,13 @@ def _group_table(res) -> np.ndarray | None:
         return np.asarray(table)
     if len(res.symmetries) < 1:
         return None
-    from .groups import cayley_table
+    from ..groups.algebra import cayley_table
 
     return cayley_table(res.fmaps).table.cpu().numpy()
 
 
 def _cmd_show(args) -> int:
-    from .cli import _progress, load_triangle_mesh, run_detector
+    from .main import _progress, load_triangle_mesh, run_detector
 
     t0 = time.perf_counter()
     verts, faces, label = load_triangle_mesh(args, "`show`", "; detecting")
@@ -339,7 +339,7 @@ def _cmd_show(args) -> int:
 
 def register_cli(subparsers) -> None:
     """Add ``symtorch show MESH`` to the ``symtorch`` command line."""
-    from .cli import add_shape_arguments
+    from .main import add_shape_arguments
 
     p = subparsers.add_parser(
         "show", help="picture of the detected symmetries and the group table (PNG, GLB)",

@@ -50,10 +50,10 @@ from pathlib import Path
 
 import torch
 
-from .io import _one_line, atomic_write
-from .data.dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
+from ..io import _one_line, atomic_write
+from .dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
                            cache_is_current, file_stamp, process_file, read_meta, write_meta)
-from .data.transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
+from .transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                               NormalizeArea)
 
 log = logging.getLogger(__name__)
@@ -184,7 +184,7 @@ def _run_item(raw: str, out: str) -> dict:
 
 def _mesh_problems(raw: str) -> str:
     """`` (mesh: 2 connected components; ...)`` for a mesh that broke processing, or ``""``."""
-    from .io import _problems, mesh_report, read_mesh
+    from ..io import _problems, mesh_report, read_mesh
 
     try:
         with warnings.catch_warnings():
@@ -596,61 +596,3 @@ def open_dataset(src: str | os.PathLike, out: str | os.PathLike, folder: str = "
                        default_pre_transform(s["k"], s["detect"], s["seed"], s.get("k_refine")),
                        transform, processed_dir=Path(out) / folder, names=names,
                        ground_truth=s["ground_truth"], dtype=_DTYPES[s["dtype"]])
-
-
-# ------------------------------------------------------------------------------------- command line
-def _cmd_precompute(args) -> int:
-    if args.k < 2:
-        raise ValueError(f"--k must be >= 2, got {args.k}")
-    gt = None if args.ground_truth == "none" else args.ground_truth
-    if args.k_refine is not None and args.k_refine < 2:
-        raise ValueError(f"--k-refine must be >= 2, got {args.k_refine}")
-    if args.k_refine is not None and args.k < args.k_refine + 8:
-        raise ValueError(f"--k must be at least --k-refine + 8 (the detector refines in the cached "
-                         f"basis, whose last band may be cut): got --k {args.k}, --k-refine {args.k_refine}")
-    s = precompute(args.src, args.out, k=args.k, detect=args.detect, k_refine=args.k_refine,
-                   workers=args.workers,
-                   dtype=_DTYPES[args.dtype], ground_truth=gt, seed=args.seed,
-                   progress=not args.quiet, dist_timeout_min=args.dist_timeout)
-    who = f"rank {s.rank}/{s.world_size}: " if s.world_size > 1 else ""
-    print(f"symtorch: precompute: {who}{s.line()}", file=sys.stderr, flush=True)
-    ranks = s.ranks
-    if ranks:  # rank 0 under torchrun: the total
-        tot = {key: sum(r[key] for r in ranks) for key in ("total", "done", "skipped", "failed")}
-        secs = max(r["seconds"] for r in ranks)
-        print(f"symtorch: precompute: all {len(ranks)} ranks: {tot['done']} done, {tot['skipped']} "
-              f"already done, {tot['failed']} failed, of {tot['total']} in {_hms(secs)}",
-              file=sys.stderr, flush=True)
-    failed = sum(r["failed"] for r in ranks) if ranks else s.failed
-    if failed:
-        print(f"symtorch: precompute: failures listed in {Path(args.out) / FAILURES}",
-              file=sys.stderr, flush=True)
-    return 1 if args.strict and (s.failed or failed) else 0
-
-
-def register_cli(subparsers) -> None:
-    """Add ``symtorch precompute SRC OUT`` to the ``symtorch`` command line."""
-    p = subparsers.add_parser(
-        "precompute", help="process a folder tree of meshes into MeshDataset caches",
-        description="Process every mesh under SRC into OUT (one .pt per mesh, read by MeshDataset). "
-                    "Resumable; bad meshes go to OUT/failures.jsonl; under torchrun each rank takes "
-                    "its share.")
-    p.add_argument("src", help="folder tree of meshes (.off, .obj, .ply, .stl)")
-    p.add_argument("out", help="cache folder; OUT/<folder> is MeshDataset's processed_dir")
-    p.add_argument("--k", type=int, default=64, help="eigenpairs per mesh (default 64)")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this one)")
-    p.add_argument("--detect", action=argparse.BooleanOptionalAction, default=True,
-                   help="also detect the symmetries (default yes)")
-    p.add_argument("--k-refine", type=int, default=None, metavar="K",
-                   help="the detector's final basis size (default 60; 100: lower dense error, slower); "
-                        "needs --k >= K + 8")
-    p.add_argument("--dtype", choices=sorted(_DTYPES), default="float32")
-    p.add_argument("--ground-truth", choices=["none", "template", "vts"], default="none",
-                   help="ground-truth correspondences to store (see MeshDataset)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the detector")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--strict", action="store_true",
-                   help="exit with status 1 when some meshes failed (default 0: they are listed)")
-    p.add_argument("--dist-timeout", type=float, default=120.0, metavar="MIN",
-                   help="under torchrun, minutes a rank waits for the others at the end")
-    p.set_defaults(func=_cmd_precompute)

@@ -33,7 +33,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .procrustes import nearest_orthogonal
+from ..procrustes import nearest_orthogonal
 
 log = logging.getLogger(__name__)
 

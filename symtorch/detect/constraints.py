@@ -12,8 +12,8 @@ import math
 import torch
 from torch import Tensor
 
-from .eval import EPS_KLC
-from .geodesics import disk_indicators
+from ..units import EPS_KLC
+from ..geodesics import disk_indicators
 
 __all__ = ["DISK_RADII", "disk_coefficients", "descriptor_coefficients"]
 

@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .paths import shared_data_dir
+from ..paths import shared_data_dir
 
 __all__ = ["DATASETS", "load_klc_pairs", "load_orbits", "load_dense_pairs", "load_tosca_dense_pairs", "list_benchmark",
            "load_ground_truth", "load_mesh", "watertight_class", "GroundTruth"]
@@ -271,7 +271,7 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     merging or reordering, so ground-truth vertex ids stay valid).
     """
     try:
-        from .io import read_mesh
+        from ..io import read_mesh
     except ImportError:
         read_mesh = None
     if read_mesh is not None:

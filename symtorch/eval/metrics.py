@@ -11,12 +11,12 @@ Protocol, pinned:
 - Mesh rate: the share of meshes whose correspondence rate is strictly above ``beta = 0.75``.
 - Normalised error: mean error / sqrt(area); scale-free, reported ×1e-3 by ``scripts/evaluate.py``.
 - Fixed points of the reflection (on the symmetry plane) are scored, mapping to themselves, unless
-  the loaders are called with ``include_fixed=False`` (see :mod:`symtorch.benchmarks`).
+  the loaders are called with ``include_fixed=False`` (see :mod:`symtorch.eval.benchmarks`).
 - Groups: true and detected symmetries are matched one-to-one by the Hungarian method on their mean
   geodesic disagreement (:func:`score_group`).
 - Watertight orbits: see :func:`orbit_errors`.
 
-Ground-truth loaders live in :mod:`symtorch.benchmarks`.
+Ground-truth loaders live in :mod:`symtorch.eval.benchmarks`.
 """
 from __future__ import annotations
 
@@ -27,8 +27,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ._checks import to_numpy
-from .geodesics import GeodesicSolver
+from .._checks import to_numpy
+from ..geodesics import GeodesicSolver
+from ..units import EPS_KLC, klc_threshold  # noqa: F401  (re-exported)
 
 __all__ = ["klc_threshold", "geodesic_errors", "orbit_errors", "klc_rates", "mesh_rate",
            "normalized_error", "score_group", "GroupScore"]
@@ -70,12 +71,6 @@ def evenly_spaced(rows, n: int):
     return rows[np.linspace(0, len(rows) - 1, n).round().astype(np.int64)]
 
 
-def klc_threshold(area: float) -> float:
-    """KLC10 correctness radius ``sqrt(area / (20 pi))``, in the units of the mesh."""
-    return math.sqrt(float(area) / (20.0 * math.pi))
-
-
-EPS_KLC = klc_threshold(1.0)  # the KLC10 radius on a unit-area shape (the detectors' unit of distance)
 
 
 def geodesic_errors(mesh, p2p, pairs) -> Tensor:
@@ -115,7 +110,7 @@ def orbit_errors(mesh, p2p, orbits, identity: bool = False) -> Tensor:
     Args:
         mesh: a :class:`GeodesicSolver` of the original mesh, or ``(verts, faces)``.
         p2p: [V] computed symmetry.
-        orbits: list of [n_o] vertex-id arrays (:func:`symtorch.benchmarks.load_orbits`).
+        orbits: list of [n_o] vertex-id arrays (:func:`symtorch.eval.benchmarks.load_orbits`).
         identity: score as the identity (every point should stay where it is).
 
     Returns:

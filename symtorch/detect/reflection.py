@@ -3,7 +3,7 @@ real, posed meshes.
 
 Pipeline (stage names as in ``SymmetryResult.timings``):
 
-1. **candidates** (``symtorch.involutions``) — heat-kernel maxima at ``t = 4 ln 10 / λ2`` and
+1. **candidates** (``symtorch.detect.involutions``) — heat-kernel maxima at ``t = 4 ln 10 / λ2`` and
    ``t/4`` (limb tips), thinned by geodesic non-maximum suppression. Seeds: two mutually symmetric pairs chosen by descriptor
    closeness and geodesic consistency (the paper's step). Each seed is then *extended to an
    involutive permutation of all extrema*: every other extremum takes the partner (possibly itself)
@@ -38,18 +38,18 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ._checks import to_numpy
+from .._checks import to_numpy
 from .constraints import descriptor_coefficients, disk_coefficients
-from .descriptors import descriptors, gradient_cross
-from .eval import EPS_KLC
-from .geodesics import GeodesicSolver, voronoi_cells
+from ..descriptors import descriptors, gradient_cross
+from ..units import EPS_KLC
+from ..geodesics import GeodesicSolver, voronoi_cells
 from .involutions import heat_extrema, involution_candidates
-from .maps import TwoLevelSearch, nearest_neighbors
-from .procrustes import block_procrustes
-from .refine import zoomout_symmetry
+from ..maps import TwoLevelSearch, nearest_neighbors
+from ..procrustes import block_procrustes
+from ..refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
-from .sampling import farthest_point_sampling
-from .spectrum import Spectrum, band_boundary, solved_bands
+from ..sampling import farthest_point_sampling
+from ..spectrum import Spectrum, band_boundary, solved_bands
 
 
 __all__ = ["detect_reflection", "isometry_score", "involution_distortion", "descriptor_gap",

@@ -16,8 +16,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .eval import EPS_KLC
-from .groups import _subtable, check_group
+from ..units import EPS_KLC
+from .algebra import _subtable, check_group
 
 log = logging.getLogger(__name__)
 
@@ -111,7 +111,7 @@ def consistent_orientation(table: Tensor, scores) -> np.ndarray:
     Returns:
         [G] bool, True for orientation-reversing elements.
     """
-    from .groups import _z2_homs
+    from .algebra import _z2_homs
 
     T = np.asarray(table)
     G = T.shape[0]

@@ -7,7 +7,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from .spectrum import Spectrum
+from ..spectrum import Spectrum
 
 
 @dataclass(frozen=True)

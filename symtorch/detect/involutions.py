@@ -4,7 +4,7 @@
 pairs them up: :func:`seed_pairs` proposes two mutually symmetric pairs from descriptor closeness and
 geodesic consistency (the paper's step), :func:`extend_involution` grows each seed into an involutive
 permutation of all extrema, and :func:`involution_candidates` keeps the distinct permutations, ranked
-by how well they keep the geodesic distances among all extrema. ``symtorch.reflect`` turns each into
+by how well they keep the geodesic distances among all extrema. ``symtorch.detect.reflection`` turns each into
 a matrix and chooses among them.
 """
 from __future__ import annotations
@@ -16,10 +16,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .descriptors import hks
-from .eval import EPS_KLC
-from .geodesics import GeodesicSolver
-from .sampling import local_maxima, vertex_adjacency
+from ..descriptors import hks
+from ..units import EPS_KLC
+from ..geodesics import GeodesicSolver
+from ..sampling import local_maxima, vertex_adjacency
 
 __all__ = ["heat_extrema", "seed_pairs", "extend_involution", "involution_candidates"]
 

@@ -8,11 +8,11 @@ import warnings
 import numpy as np
 import torch
 
-from ._checks import check_mesh
-from .geodesics import GeodesicSolver
+from .._checks import check_mesh
+from ..geodesics import GeodesicSolver
 from .result import SymmetryResult
-from .sampling import count_components
-from .spectrum import Spectrum, laplacian_spectrum
+from ..sampling import count_components
+from ..spectrum import Spectrum, laplacian_spectrum
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
             the last band dropped as possibly cut, and at least 60 for the group path's descriptors.
             More changes nothing on the reflection path: SCAPE, TOSCA, FAUST and TOSCA_Isometric
             give the same rates and errors from 70 or 160 eigenpairs at k_refine=60).
-        mode: 'reflection' (ALGORITHM §4), 'group' (§5, ``symtorch.group_detect``) or 'auto'.
+        mode: 'reflection' (ALGORITHM §4), 'group' (§5, ``symtorch.detect.group_path``) or 'auto'.
             'auto' runs the group path when the low spectrum has repeated eigenvalues at more than one
             scale (``group_detect.has_multiplicities``: rotations make 2-dimensional eigenspaces all
             the way up), and keeps its result when it is a continuous symmetry or a verified group of
@@ -115,8 +115,8 @@ def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
     # the geometry is solved on the host: the spectrum follows it there, the result goes back
     spectrum = spectrum.to("cpu")
     timer.lap("spectrum")
-    from .group_detect import detect_group, has_multiplicities, with_group
-    from .reflect import detect_reflection
+    from .group_path import detect_group, has_multiplicities, with_group
+    from .reflection import detect_reflection
     # one factorisation for both paths (the timer counts it in the first path's first stage); its
     # fields are read back where the second path asks for a source the first one solved
     solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)

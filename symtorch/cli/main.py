@@ -31,21 +31,21 @@ def _progress(msg: str) -> None:
 def load_shape(path: str | None, demo: str | None = None):
     """(verts [V, 3], faces [F, 3] or None, label) from a mesh file or a built-in shape name."""
     if demo is not None:
-        from . import shapes
+        from .. import shapes
         if demo not in shapes.SHAPES:
             raise CLIError(f"unknown demo shape {demo!r}; choose from {', '.join(shapes.SHAPES)}")
         v, f = shapes.SHAPES[demo]()
         return v, f, f"demo:{demo}"
     if path is None:
         raise CLIError("give a mesh file, or --demo [NAME] for a built-in shape")
-    from .io import read_mesh
+    from ..io import read_mesh
     mesh = read_mesh(path)
     return mesh.verts, mesh.faces, path
 
 
 def write_json_atomic(path: str, obj) -> None:
     """Write ``obj`` as JSON to ``path`` via a temporary file and a rename (never half-written)."""
-    from .io import atomic_write
+    from ..io import atomic_write
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
 
     def write(tmp: str) -> None:
@@ -57,8 +57,8 @@ def write_json_atomic(path: str, obj) -> None:
 
 def run_detector(verts, faces, label: str, **kw):
     """``detect_symmetries`` for the CLI: input it cannot handle and its crashes become one line."""
-    from .detect import detect_symmetries
-    from .io import mesh_report
+    from ..detect.auto import detect_symmetries
+    from ..io import mesh_report
     if faces is None:
         raise CLIError(f"{label}: is a point cloud (no faces); symmetry detection needs a triangle mesh")
     rep = mesh_report(verts, faces)
@@ -109,7 +109,7 @@ def _cmd_detect(args) -> int:
         _progress(f"group {grp.get('name')} of order {grp.get('order')}: {names}")
     _progress("timings " + " ".join(f"{k}={v:.3f}s" for k, v in out["timings"].items()))
     if args.matrices:
-        from .io import atomic_write
+        from ..io import atomic_write
         os.makedirs(os.path.dirname(os.path.abspath(args.matrices)), exist_ok=True)
 
         def write(tmp: str) -> None:
@@ -131,8 +131,8 @@ def _cmd_detect(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    from .io import mesh_report
-    from .spectrum import eigen_bands, laplacian_spectrum
+    from ..io import mesh_report
+    from ..spectrum import eigen_bands, laplacian_spectrum
     verts, faces, label = load_shape(args.mesh, args.demo)
     rep = mesh_report(verts, faces)
     info = {"mesh": label, **{k: (v.item() if hasattr(v, "item") else v) for k, v in rep.items()}}
@@ -190,7 +190,7 @@ def _register_optional():
     regs = []
     for mod in ("precompute", "show"):
         try:
-            m = __import__(f"symtorch.{mod}", fromlist=["register_cli"])
+            m = __import__(f"symtorch.cli.{mod}", fromlist=["register_cli"])
         except ImportError:
             continue
         if hasattr(m, "register_cli"):

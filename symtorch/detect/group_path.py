@@ -1,7 +1,7 @@
 """Whole finite symmetry groups: rotations and reflections together (ALGORITHM §5; Wang & Huang 2017 §4.2).
 
 Pipeline, every step automatic (no hand-typed bands, orbit or group size; steps 1 and 2 live in
-:mod:`symtorch.group_candidates`):
+:mod:`symtorch.detect.candidates`):
 
 1. **Invariant points** ``P``: local maxima and minima of the heat kernel signature at three
    scales (``t = 4 ln10 / lambda_2`` times 1, 1/10, 1/50: limb tips down to corners), thinned by
@@ -72,21 +72,21 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .cluster import mean_shift
+from ..cluster import mean_shift
 from .constraints import descriptor_coefficients, disk_coefficients
-from .descriptors import descriptors
-from .eval import EPS_KLC
-from .geodesics import GeodesicSolver
-from .group_candidates import candidate_tuples, invariant_points, source_tuples
-from .group_maps import canonical_order, consistent_orientation, largest_subgroup
-from .groups import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
+from ..descriptors import descriptors
+from ..units import EPS_KLC
+from ..geodesics import GeodesicSolver
+from .candidates import candidate_tuples, invariant_points, source_tuples
+from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
+from ..groups.algebra import (DEFAULT_TOL, _rel_dist, cayley_table, closure, group_info, kind_of,
                      orientation_reversing, orientation_score)
-from .procrustes import block_procrustes, block_project
-from .maps import TwoLevelSearch, p2p_to_fmap
-from .refine import zoomout_symmetry
+from ..procrustes import block_procrustes, block_project
+from ..maps import TwoLevelSearch, p2p_to_fmap
+from ..refine import zoomout_symmetry
 from .result import Symmetry, SymmetryResult
-from .sampling import farthest_point_sampling
-from .spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
+from ..sampling import farthest_point_sampling
+from ..spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
 
 log = logging.getLogger(__name__)
 
