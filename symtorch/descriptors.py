@@ -6,6 +6,8 @@ import math
 import torch
 from torch import Tensor
 
+from .orientation import face_geometry, face_gradients, faces_to_vertices
+
 
 def _check(evals: Tensor, evecs: Tensor) -> None:
     if evals.shape[-1] != evecs.shape[-1]:
@@ -107,23 +109,13 @@ def gradient_cross(verts: Tensor, faces: Tensor, fields: Tensor, pairs: Tensor) 
         pairs: [P, 2] long indices into ``fields``.
 
     Returns:
-        [V, P], per face values averaged to the vertices with face-area weights.
+        [V, P], per face values averaged to the vertices with face-area weights (the face gradients
+        of :mod:`symtorch.orientation`, shared with its orientation operators).
     """
     faces = torch.as_tensor(faces, device=verts.device)
-    vf = verts[faces]  # [F, 3, 3]
-    N = torch.cross(vf[:, 1] - vf[:, 0], vf[:, 2] - vf[:, 0], dim=-1)
-    dbl = N.norm(dim=-1, keepdim=True).clamp_min(torch.finfo(verts.dtype).tiny)  # twice the area
-    n = N / dbl
-    # gradient of a linear function on a triangle: sum_i u_i (n x e_i) / (2 area), e_i opposite i
-    e = torch.stack([vf[:, 2] - vf[:, 1], vf[:, 0] - vf[:, 2], vf[:, 1] - vf[:, 0]], 1)  # [F, 3, 3]
-    ne = torch.cross(n[:, None, :].expand_as(e), e, dim=-1) / dbl[:, None]
-    g = torch.einsum("fin,fid->fnd", fields.mT[faces], ne)  # [F, n, 3]
+    geo = face_geometry(verts, faces)
+    g = face_gradients(verts, faces, fields.mT, geo)  # [F, n, 3]
     pairs = torch.as_tensor(pairs, device=verts.device).reshape(-1, 2)
-    s = torch.einsum("fd,fpd->fp", n, torch.cross(g[:, pairs[:, 0]], g[:, pairs[:, 1]], dim=-1))
-    w = dbl[:, 0]
-    out = torch.zeros(verts.shape[0], pairs.shape[0], dtype=verts.dtype, device=verts.device)
-    den = torch.zeros(verts.shape[0], dtype=verts.dtype, device=verts.device)
-    for i in range(3):
-        out.index_add_(0, faces[:, i], s * w[:, None])
-        den.index_add_(0, faces[:, i], w)
-    return out / den.clamp_min(torch.finfo(verts.dtype).tiny)[:, None]
+    cross = torch.cross(g[:, pairs[:, 0]], g[:, pairs[:, 1]], dim=-1)  # [F, P, 3]
+    s = torch.einsum("fd,fpd->fp", geo.normals, cross)
+    return faces_to_vertices(s, faces, geo.areas, verts.shape[0])

@@ -49,7 +49,9 @@ def _build():
 
     from .data import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries, MeshDataset,
                        NormalizeArea, PairDataset, RandomEigenSigns, RandomSymmetry, SetSymmetries,
-                       pad_collate)
+                       SymmetryFromCorrespondence, pad_collate)
+    from .data.dataset import PAIR_MODES
+    from .data.symmetry import AUGMENT_MODES
 
     class SymmetryDataModule(L.LightningDataModule):
         """Shapes (or pairs of shapes) of one mesh folder, with spectra, descriptors and symmetries.
@@ -68,14 +70,21 @@ def _build():
             n_hks, n_wks: descriptor sizes (``ComputeDescriptors``); both 0 skips descriptors.
             normalize_area: scale each shape to unit area first (``NormalizeArea``).
             symmetries: ``None``; ``"detect"`` (``DetectSymmetries(**detect_kwargs)`` on each shape);
-                or a ``[G, V]`` long tensor of vertex maps shared by every shape (``SetSymmetries``: one
-                template, e.g. SCAPE).
+                ``"correspondence"`` (``SymmetryFromCorrespondence``: the reflection of the symmetric
+                ground truth, needs ``ground_truth="vts"`` with ``.sym.vts`` files); or a ``[G, V]``
+                long tensor of vertex maps shared by every shape (``SetSymmetries``: one template,
+                e.g. SCAPE).
             detect_kwargs: keywords of ``DetectSymmetries``.
             pre_transform: replaces the pre-transform built from the knobs above.
-            augment_symmetry: train shapes get ``RandomSymmetry`` (needs ``symmetries``).
+            augment_symmetry: train shapes get ``RandomSymmetry(mode=...)`` (needs ``symmetries``):
+                ``"relabel"`` (or True) composes their ground truth with a random symmetry,
+                ``"mirror"`` also mirrors them when the element reverses orientation (the ground
+                truth stays orientation preserving); False: no symmetry augmentation.
             augment_signs: train shapes get ``RandomEigenSigns``.
             train_transform: further transform of train shapes (after the two above).
-            pairs: items are pairs (``PairDataset``, all ordered pairs within a split) or single shapes.
+            pairs: items are pairs (``PairDataset``, ordered pairs within a split) or single shapes.
+            pair_mode: which pairs within a split: ``"all"`` or ``"same_class"`` (TOSCA: cat with
+                cat, ...; see ``PairDataset``).
             split: fractions (summing to 1) or counts of shapes for train, val, test.
             seed: seed of the split.
             batch_size, num_workers: of every ``DataLoader``.
@@ -92,23 +101,33 @@ def _build():
                      normalize_area: bool = True, symmetries: str | Tensor | None = None,
                      detect_kwargs: dict | None = None,
                      pre_transform: Callable[[dict], dict] | None = None,
-                     augment_symmetry: bool = False, augment_signs: bool = False,
+                     augment_symmetry: bool | str = False, augment_signs: bool = False,
                      train_transform: Callable[[dict], dict] | None = None, pairs: bool = True,
+                     pair_mode: str = "all",
                      split: Sequence[float] = (0.8, 0.1, 0.1), seed: int = 0, batch_size: int = 1,
                      num_workers: int = 0, force_reload: bool = False):
             super().__init__()
-            if isinstance(symmetries, str) and symmetries != "detect":
-                raise ValueError(f"symmetries must be None, 'detect' or a [G, V] tensor, "
-                                 f"got {symmetries!r}")
+            if isinstance(symmetries, str) and symmetries not in ("detect", "correspondence"):
+                raise ValueError(f"symmetries must be None, 'detect', 'correspondence' or a [G, V] "
+                                 f"tensor, got {symmetries!r}")
+            if pair_mode not in PAIR_MODES:
+                raise ValueError(f"pair_mode must be one of {PAIR_MODES}, got {pair_mode!r}")
+            if augment_symmetry is True:
+                augment_symmetry = "relabel"
+            if augment_symmetry not in (False, None) and augment_symmetry not in AUGMENT_MODES:
+                raise ValueError(f"augment_symmetry must be False, True or one of {AUGMENT_MODES}, "
+                                 f"got {augment_symmetry!r}")
             if augment_symmetry and symmetries is None and pre_transform is None:
-                raise ValueError("augment_symmetry needs symmetries ('detect' or a [G, V] tensor)")
+                raise ValueError("augment_symmetry needs symmetries ('detect', 'correspondence' or a "
+                                 "[G, V] tensor)")
             self.root, self.processed_dir, self.names = root, processed_dir, names
             self.ground_truth, self.k, self.n_hks, self.n_wks = ground_truth, k, n_hks, n_wks
             self.normalize_area, self.symmetries = normalize_area, symmetries
             self.detect_kwargs = dict(detect_kwargs or {})
             self._pre_transform = pre_transform
-            self.augment_symmetry, self.augment_signs = augment_symmetry, augment_signs
-            self.train_transform, self.pairs = train_transform, pairs
+            self.augment_symmetry = augment_symmetry or False
+            self.augment_signs = augment_signs
+            self.train_transform, self.pairs, self.pair_mode = train_transform, pairs, pair_mode
             self.split, self.seed = tuple(split), seed
             self.batch_size, self.num_workers, self.force_reload = batch_size, num_workers, force_reload
             self.train_set = self.val_set = self.test_set = None
@@ -122,14 +141,16 @@ def _build():
             steps.append(ComputeSpectrum(self.k))
             if self.n_hks or self.n_wks:
                 steps.append(ComputeDescriptors(self.n_hks, self.n_wks))
-            if isinstance(self.symmetries, str):
+            if isinstance(self.symmetries, str) and self.symmetries == "correspondence":
+                steps.append(SymmetryFromCorrespondence())
+            elif isinstance(self.symmetries, str):
                 steps.append(DetectSymmetries(**self.detect_kwargs))
             elif self.symmetries is not None:
                 steps.append(SetSymmetries(self.symmetries))
             return Compose(steps)
 
         def _augmentation(self) -> Callable[[dict], dict] | None:
-            steps = [RandomSymmetry()] if self.augment_symmetry else []
+            steps = [RandomSymmetry(mode=self.augment_symmetry)] if self.augment_symmetry else []
             if self.augment_signs:
                 steps.append(RandomEigenSigns())
             if self.train_transform is not None:
@@ -149,7 +170,7 @@ def _build():
             augment = self._augmentation()
             train_base = self._dataset(augment) if augment is not None else plain
             idx_train, idx_val, idx_test = split_indices(len(plain), self.split, self.seed)
-            wrap = PairDataset if self.pairs else (lambda d: d)
+            wrap = (lambda d: PairDataset(d, pairs=self.pair_mode)) if self.pairs else (lambda d: d)
             self.train_set = wrap(Subset(train_base, idx_train))
             self.val_set = wrap(Subset(plain, idx_val))
             self.test_set = wrap(Subset(plain, idx_test))

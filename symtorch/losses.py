@@ -8,7 +8,8 @@ Every loss takes any leading batch dims, is differentiable in its matrix argumen
 and device, and is 0 at its ideal. Each is a squared Frobenius norm per map (summed over entries),
 reduced over the batch dims by ``reduction``: ``"mean"`` (default), ``"sum"`` or ``"none"`` (keep
 ``[...]``). The symmetry-aware terms are ``symmetry_equivariance_loss`` (``C_xy S_x = S_y C_xy``) and
-``symmetric_fmap_loss`` (distance to the nearest of the truth's symmetric images); the point-map errors
+``symmetric_fmap_loss`` (distance to the nearest of the truth's symmetric images); ``orientation_loss``
+(Ren et al. 2018) tells a map from its mirror-flipped twin. The point-map errors
 ``p2p_error`` and ``symmetric_p2p_error`` ("accuracy up to symmetry") are evaluation measures, not
 differentiable.
 """
@@ -20,7 +21,8 @@ import torch
 from torch import Tensor
 
 __all__ = ["fmap_loss", "orthogonality_loss", "bijectivity_loss", "laplacian_commutativity_loss",
-           "symmetry_equivariance_loss", "symmetric_fmap_loss", "p2p_error", "symmetric_p2p_error"]
+           "orientation_loss", "symmetry_equivariance_loss", "symmetric_fmap_loss", "p2p_error",
+           "symmetric_p2p_error"]
 
 _REDUCTIONS = ("mean", "sum", "none")
 
@@ -86,19 +88,59 @@ def bijectivity_loss(C_xy: Tensor, C_yx: Tensor, reduction: str = "mean") -> Ten
 
 
 def laplacian_commutativity_loss(C_xy: Tensor, evals_x: Tensor, evals_y: Tensor,
-                                 reduction: str = "mean") -> Tensor:
+                                 reduction: str = "mean", normalize: bool = True) -> Tensor:
     """``||C_xy diag(evals_x) - diag(evals_y) C_xy||_F^2 = sum_ij C_ij^2 (evals_y_i - evals_x_j)^2``:
-    an isometry commutes with the Laplacian (Ovsjanikov et al. 2012). Eigenvalues of unit-area
-    shapes (``ComputeSpectrum``) are comparable across shapes; their size sets the weight of the term.
+    an isometry commutes with the Laplacian (Ovsjanikov et al. 2012).
+
+    Raw eigenvalues grow like k, so at large K this term swamps the others. With ``normalize`` both
+    eigenvalue vectors are first divided by the larger of their two maxima (per map, over the batch
+    dims), as GeomFmaps (Donati et al. 2020) and ULRSSM (Cao et al. 2023) do in their regularised
+    solvers: the term is then O(1) whatever K and the area of the shapes.
 
     Args:
         C_xy: [..., K_y, K_x]; evals_x: [..., K_x]; evals_y: [..., K_y].
+        normalize: divide by ``max(evals_x.max(), evals_y.max())`` (the largest absolute value, so a
+            padded batch's zeros do not matter); False: raw eigenvalues (unit-area shapes,
+            ``ComputeSpectrum``, make them comparable across shapes, and their size weights the term).
     """
     if evals_x.shape[-1] != C_xy.shape[-1] or evals_y.shape[-1] != C_xy.shape[-2]:
         raise ValueError(f"C_xy is {list(C_xy.shape)} but evals_x has {evals_x.shape[-1]} and "
                          f"evals_y {evals_y.shape[-1]} values")
+    if normalize:
+        top = torch.maximum(evals_x.abs().amax(-1), evals_y.abs().amax(-1))[..., None]
+        top = top.clamp_min(torch.finfo(top.dtype).tiny)  # all-zero spectra: leave them zero
+        evals_x, evals_y = evals_x / top, evals_y / top
     gap = evals_y[..., :, None] - evals_x[..., None, :]  # [..., K_y, K_x]
     return _reduce((C_xy * gap).square().sum((-2, -1)), reduction)
+
+
+def orientation_loss(C_xy: Tensor, O_x: Tensor, O_y: Tensor, reduction: str = "mean",
+                     reversing: bool = False) -> Tensor:
+    """``mean_d ||C_xy O_x[d] - O_y[d] C_xy||_F^2``: the map preserves the surface orientation
+    (Ren, Poulenard, Wonka, Ovsjanikov, SIGGRAPH Asia 2018).
+
+    ``O_x[d]``, ``O_y[d]`` are the orientation operators of corresponding descriptors
+    (:func:`symtorch.orientation.orientation_operators`, sample key ``orient_op``); an
+    orientation-preserving map commutes with them, an orientation-reversing one anti-commutes. It is
+    what tells the true map from its mirror-flipped twin, which every intrinsic term scores equally.
+    Padded entries of a batch (zero rows and columns of C and the operators) add nothing, so no mask
+    is needed.
+
+    Args:
+        C_xy: [..., K_y, K_x].
+        O_x: [..., D, K_x, K_x]; O_y: [..., D, K_y, K_y].
+        reversing: ask for an orientation-reversing map, ``C_xy O_x ≈ -O_y C_xy`` (a map onto a
+            mirror image).
+    """
+    Ky, Kx = C_xy.shape[-2:] if C_xy.dim() >= 2 else (-1, -1)
+    if C_xy.dim() < 2 or O_x.dim() < 3 or O_y.dim() < 3 or O_x.shape[-2:] != (Kx, Kx) \
+            or O_y.shape[-2:] != (Ky, Ky) or O_x.shape[-3] != O_y.shape[-3]:
+        raise ValueError(f"C_xy [..., K_y, K_x] = {list(C_xy.shape)} needs O_x [..., D, K_x, K_x] and "
+                         f"O_y [..., D, K_y, K_y], got {list(O_x.shape)} and {list(O_y.shape)}")
+    C = C_xy[..., None, :, :]
+    rhs = O_y @ C
+    per = _sqnorm(C @ O_x + rhs if reversing else C @ O_x - rhs).mean(-1)  # [...]
+    return _reduce(per, reduction)
 
 
 def symmetry_equivariance_loss(C_xy: Tensor, sym_x: Tensor, sym_y: Tensor,

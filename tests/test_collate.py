@@ -33,6 +33,9 @@ def test_pad_collate_samples_of_different_sizes():
     assert batch["sym_p2p"].shape == (2, 2, Vb) and batch["sym_mask"].tolist() == [[True, False],
                                                                                   [True, True]]
     assert batch["sym_fmap"][0, 1].abs().sum() == 0 and (batch["sym_p2p"][0, 1] == -1).all()
+    # orientation flags pad with False, under the same group mask
+    assert batch["sym_reverses"].tolist() == [[False, False], [False, True]]
+    assert "sym_reverses_mask" not in batch
     assert batch["corr_mask"].all() and "hks_mask" not in batch and "evals_mask" not in batch
     # padded vertices carry no mass: spectral projections need no mask
     coefs = batch["evecs"].mT @ (batch["mass"][..., None] * batch["hks"])

@@ -105,7 +105,7 @@ def test_names_transform_and_errors(folder, tmp_path):
     with pytest.raises(FileNotFoundError, match="mesh folder not found"):
         MeshDataset(tmp_path / "missing")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(FileNotFoundError, match="no .off/.obj/.ply files"):
+    with pytest.raises(FileNotFoundError, match="no .off/.obj/.ply/.stl files"):
         MeshDataset(tmp_path / "empty", processed_dir=tmp_path / "c2")
     with pytest.raises(ValueError, match="ground_truth must be None, 'template', 'vts'"):
         MeshDataset(folder, ground_truth="identity")
@@ -190,12 +190,12 @@ def test_random_symmetry_keeps_pair_ground_truth(folder, tmp_path):
                      dtype=torch.float64)
     x, y = ds[0], ds[1]
     flip = RandomSymmetry(torch.Generator().manual_seed(0))
-    y2 = next(s for s in (flip(y) for _ in range(20)) if not torch.equal(s["verts"], y["verts"]))
+    y2 = next(s for s in (flip(y) for _ in range(20)) if not torch.equal(s["corr"], y["corr"]))
     a, b = PairDataset([x, y], pairs=[(0, 1)])[0], PairDataset([x, y2], pairs=[(0, 1)])[0]
-    # vertex i of the relabelled y is old vertex mirror[i]: its partner on x is x's mirror[i] ...
-    assert torch.equal(b["p2p_yx"], mirror)
-    # ... so a point and its image moved together: same partner positions as before relabelling
-    assert torch.equal(b["y"]["verts"], a["y"]["verts"][mirror])
-    assert torch.equal(x["verts"][b["p2p_yx"]], x["verts"][a["p2p_yx"][mirror]])
-    # in the moved basis of y the ground-truth functional map is unchanged (exact symmetry)
-    torch.testing.assert_close(b["fmap_xy"], a["fmap_xy"], atol=1e-6, rtol=0)
+    # the mesh did not move; the template points did: vertex i of y now goes to x's mirror[i]
+    assert torch.equal(b["y"]["verts"], a["y"]["verts"]) and torch.equal(b["y"]["faces"], faces)
+    assert torch.equal(b["p2p_yx"], a["p2p_yx"][mirror])
+    # the ground-truth functional map follows: C' = S_y @ C (an exact symmetry of y)
+    torch.testing.assert_close(b["fmap_xy"], y["sym_fmap"][1] @ a["fmap_xy"], atol=1e-6, rtol=0)
+    ref = p2p_to_fmap(b["p2p_yx"], x["evecs"], y["mass"], evecs_src=y["evecs"])
+    torch.testing.assert_close(b["fmap_xy"], ref)

@@ -106,8 +106,33 @@ def test_errors(folder):
     root, _ = folder
     with pytest.raises(ValueError, match="augment_symmetry needs symmetries"):
         SymmetryDataModule(root, augment_symmetry=True)
-    with pytest.raises(ValueError, match="symmetries must be None, 'detect' or a \\[G, V\\] tensor"):
+    with pytest.raises(ValueError, match="symmetries must be None, 'detect', 'correspondence' or a \\[G, V\\] tensor"):
         SymmetryDataModule(root, symmetries="template")
+    with pytest.raises(ValueError, match="augment_symmetry must be False, True or one of"):
+        SymmetryDataModule(root, symmetries="detect", augment_symmetry="move")
+    with pytest.raises(ValueError, match="pair_mode must be one of \\('all', 'same_class'\\)"):
+        SymmetryDataModule(root, pair_mode="class")
+
+
+def test_mirror_augmentation_and_pair_mode(folder, tmp_path):
+    """augment_symmetry='mirror' mirrors train shapes (faces rewound) and keeps the pairs' ground
+    truth a bijection; pair_mode='same_class' pairs shapes whose names differ only in digits."""
+    root, sym = folder
+    dm = SymmetryDataModule(root, processed_dir=tmp_path / "cache", ground_truth="template", k=6,
+                            n_hks=0, n_wks=0, symmetries=sym, augment_symmetry="mirror",
+                            pair_mode="same_class", split=(3, 2, 0), seed=1)
+    dm.prepare_data()
+    dm.setup("fit")
+    assert len(dm.train_set) == 6 and len(dm.val_set) == 2
+    base = dm.val_set.dataset.dataset[0]["faces"]
+    rewound = 0
+    for _ in range(4):
+        for item in dm.train_set:
+            for s in (item["x"], item["y"]):
+                assert s["sym_reverses"].tolist() == [False, True]
+                rewound += bool(torch.equal(s["faces"], base[:, [0, 2, 1]]))
+            assert torch.equal(item["p2p_yx"].sort().values, torch.arange(len(item["p2p_yx"])))
+    assert 0 < rewound < 48
 
 
 def test_lazy_import_hint(monkeypatch):

@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from symtorch.losses import (bijectivity_loss, fmap_loss, laplacian_commutativity_loss,
-                             orthogonality_loss, p2p_error, symmetric_fmap_loss,
+                             orientation_loss, orthogonality_loss, p2p_error, symmetric_fmap_loss,
                              symmetric_p2p_error, symmetry_equivariance_loss)
 
 K = 5
@@ -32,6 +32,12 @@ def commuting_map(S, seed=0):
     return C * (plus[:, None] == plus[None, :])
 
 
+def antisymmetric(*lead, n=K, seed=0):
+    """Random antisymmetric matrices, like orientation operators."""
+    A = rand(*lead, n, n, seed=seed)
+    return A - A.mT
+
+
 def test_zero_at_ideal():
     C = orthogonal(3)
     assert orthogonality_loss(C) < 1e-24
@@ -40,6 +46,12 @@ def test_zero_at_ideal():
     block = torch.eye(K, dtype=F64)
     block[1:3, 1:3] = orthogonal(n=2)  # mixes a repeated eigenvalue only
     assert laplacian_commutativity_loss(block, evals, evals) < 1e-24
+    assert laplacian_commutativity_loss(block, evals, evals, normalize=False) < 1e-24
+    O = antisymmetric(4)  # [D, K, K]
+    Q = orthogonal(seed=7)
+    assert orientation_loss(Q, O, Q @ O @ Q.mT) < 1e-24           # C O_x = O_y C
+    assert orientation_loss(Q, O, -Q @ O @ Q.mT, reversing=True) < 1e-24
+    assert orientation_loss(Q, O, -Q @ O @ Q.mT) > 1
     S = reflections()
     Cc = commuting_map(S[1])
     assert symmetry_equivariance_loss(Cc, S, S) < 1e-24
@@ -59,11 +71,15 @@ def test_gradcheck():
     S = reflections().requires_grad_()
     Cgt = rand(2, K, K, seed=5)
     mask = torch.tensor([[True, True], [True, False]])
+    O = antisymmetric(2, 3, seed=6).requires_grad_()  # [B, D, K, K]
     checks = {
         "fmap": lambda c: fmap_loss(c, Cgt),
         "orthogonality": orthogonality_loss,
         "bijectivity": lambda c: bijectivity_loss(c, C2),
         "commutativity": lambda c: laplacian_commutativity_loss(c, evals_x, evals_y),
+        "commutativity-raw": lambda c: laplacian_commutativity_loss(c, evals_x, evals_y, normalize=False),
+        "orientation": lambda c: orientation_loss(c, O, O),
+        "orientation-reversing": lambda c: orientation_loss(c, O, O, reversing=True),
         "equivariance": lambda c: symmetry_equivariance_loss(c, S, S),
         "equivariance-best": lambda c: symmetry_equivariance_loss(c, S, S.flip(0), mask_y=mask,
                                                                   match="best"),
@@ -74,6 +90,43 @@ def test_gradcheck():
     assert torch.autograd.gradcheck(lambda a, b: laplacian_commutativity_loss(C, a, b),
                                     (evals_x, evals_y))
     assert torch.autograd.gradcheck(lambda s: symmetry_equivariance_loss(C, s, s), (S,))
+    O2 = antisymmetric(2, 3, seed=7).requires_grad_()
+    assert torch.autograd.gradcheck(lambda a, b: orientation_loss(C, a, b), (O, O2))
+
+
+def test_laplacian_commutativity_normalizes_eigenvalues_by_the_larger_maximum():
+    C = rand(3, K, K, seed=8)
+    ex, ey = rand(3, K, seed=9).abs().cumsum(-1), rand(3, K, seed=10).abs().cumsum(-1)
+    top = torch.maximum(ex.amax(-1), ey.amax(-1))[:, None]  # per map, as GeomFmaps / ULRSSM
+    per = laplacian_commutativity_loss(C, ex, ey, reduction="none")
+    torch.testing.assert_close(per, laplacian_commutativity_loss(C, ex / top, ey / top,
+                                                                 normalize=False, reduction="none"))
+    # scale free: eigenvalues of a shape at another area (or at larger K) do not swamp the term
+    torch.testing.assert_close(laplacian_commutativity_loss(C, 100 * ex, 100 * ey), per.mean())
+    assert laplacian_commutativity_loss(C, 100 * ex, 100 * ey, normalize=False) > 1e3 * per.mean()
+    zero = torch.zeros(K, dtype=F64)
+    assert laplacian_commutativity_loss(C[0], zero, zero) == 0  # no NaN from an all-zero spectrum
+
+
+def test_orientation_loss_batching_and_errors():
+    C = rand(3, 4, K, seed=11)  # [B, K_y, K_x], K_y = 4
+    Ox, Oy = antisymmetric(3, 2, seed=12), antisymmetric(3, 2, n=4, seed=13)  # [B, D, K, K]
+    per = orientation_loss(C, Ox, Oy, reduction="none")
+    assert per.shape == (3,) and per.dtype == F64
+    want = ((C[1] @ Ox[1, 0] - Oy[1, 0] @ C[1]).square().sum()
+            + (C[1] @ Ox[1, 1] - Oy[1, 1] @ C[1]).square().sum()) / 2  # mean over descriptors
+    torch.testing.assert_close(per[1], want)
+    torch.testing.assert_close(orientation_loss(C, Ox, Oy), per.mean())
+    # padding: zero rows / columns of the map and the operators add nothing
+    Cp, Oxp = torch.zeros(3, 4, K + 2, dtype=F64), torch.zeros(3, 2, K + 2, K + 2, dtype=F64)
+    Cp[..., :K], Oxp[..., :K, :K] = C, Ox
+    torch.testing.assert_close(orientation_loss(Cp, Oxp, Oy, reduction="none"), per)
+    with pytest.raises(ValueError, match=r"needs O_x \[..., D, K_x, K_x\] and O_y \[..., D, K_y, K_y\]"):
+        orientation_loss(C, Oy, Oy)
+    with pytest.raises(ValueError, match=r"got \[3, 2, 5, 5\] and \[3, 1, 4, 4\]"):
+        orientation_loss(C, Ox, Oy[:, :1])
+    with pytest.raises(ValueError, match="reduction must be one of"):
+        orientation_loss(C, Ox, Oy, reduction="max")
 
 
 def test_batching_and_reductions():
@@ -166,6 +219,7 @@ def test_losses_on_device(device):
         "orthogonality": lambda c, d: orthogonality_loss(c),
         "bijectivity": lambda c, d: bijectivity_loss(c, d(C2).mT),
         "commutativity": lambda c, d: laplacian_commutativity_loss(c, d(evals), d(evals)),
+        "orientation": lambda c, d: orientation_loss(c, d(antisymmetric(2, 3)), d(antisymmetric(2, 3, seed=1))),
         "equivariance": lambda c, d: symmetry_equivariance_loss(c, d(S), d(S), mask_y=d(mask), match="best"),
         "symmetric": lambda c, d: symmetric_fmap_loss(c, d(Cgt), d(S), mask=d(mask)),
     }

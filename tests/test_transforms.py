@@ -1,4 +1,4 @@
-"""Sample transforms: reprs, determinism under a generator, and the symmetry relabelling."""
+"""Sample transforms: reprs, determinism under a generator, and symmetry augmentation."""
 import inspect
 
 import pytest
@@ -6,7 +6,8 @@ import torch
 
 from symtorch.data import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                            NormalizeArea, RandomBandRotation, RandomEigenSigns, RandomSymmetry,
-                           SetSymmetries, apply_symmetry, bands_from_index, symmetry_fmaps)
+                           SetSymmetries, SymmetryFromCorrespondence, apply_symmetry,
+                           bands_from_index, mirror_shape, symmetry_fmaps)
 from symtorch.spectrum import band_index, eigen_bands
 from shapes import mirror_mesh
 
@@ -39,8 +40,12 @@ def test_reprs():
     assert repr(SetSymmetries(p)).startswith("SetSymmetries(G=2, V=4, sha1=")
     assert repr(SetSymmetries(p)) == repr(SetSymmetries(p.clone()))
     assert repr(SetSymmetries(p)) != repr(SetSymmetries(p.flip(0)))
+    assert repr(SetSymmetries(p)).endswith(", reverses=None)")
+    assert repr(SetSymmetries(p, reverses=[False, True])).endswith(", reverses=[False, True])")
     g = torch.Generator().manual_seed(0)
-    assert repr(RandomSymmetry(generator=g)) == "RandomSymmetry()"
+    assert repr(RandomSymmetry(generator=g)) == "RandomSymmetry(mode='relabel', axis=0)"
+    assert repr(RandomSymmetry(mode="mirror", axis=2)) == "RandomSymmetry(mode='mirror', axis=2)"
+    assert repr(SymmetryFromCorrespondence()) == "SymmetryFromCorrespondence(method='local')"
     assert repr(RandomEigenSigns()) == "RandomEigenSigns()"
     assert repr(RandomBandRotation()) == "RandomBandRotation()"
     assert repr(Compose([NormalizeArea(), ComputeSpectrum(k=8)])) == \
@@ -51,7 +56,9 @@ def test_reprs():
 def test_transforms_do_not_mutate_their_input(sym_sample):
     sample, _ = sym_sample
     before = {k: v.clone() if isinstance(v, torch.Tensor) else v for k, v in sample.items()}
-    for t in (NormalizeArea(), RandomSymmetry(), RandomEigenSigns(), RandomBandRotation()):
+    mirror_all = RandomSymmetry(mode="mirror", generator=torch.Generator().manual_seed(0))
+    for t in (NormalizeArea(), RandomSymmetry(), RandomEigenSigns(), RandomBandRotation(),
+              *[mirror_all] * 4):
         t(sample)
     for key, value in before.items():
         assert key in sample
@@ -106,87 +113,154 @@ def test_set_symmetries(sym_sample):
     # an exact mirror: evecs[mirror] = evecs @ S, S orthogonal and involutive
     torch.testing.assert_close(sample["evecs"][mirror], sample["evecs"] @ S[1], atol=1e-6, rtol=0)
     torch.testing.assert_close(S[1] @ S[1], torch.eye(12, dtype=torch.float64), atol=1e-8, rtol=0)
+    # orientation: voted on the faces when not given (the mirror reverses it), or taken as given
+    assert sample["sym_reverses"].tolist() == [False, True]
+    given = SetSymmetries(sample["sym_p2p"], reverses=torch.tensor([False, False]))(sample)
+    assert given["sym_reverses"].tolist() == [False, False]
+    cloud = {k: v for k, v in sample.items() if k != "faces"}
+    assert "sym_reverses" not in SetSymmetries(sample["sym_p2p"])(
+        {k: v for k, v in cloud.items() if k != "sym_reverses"})
+    with pytest.raises(ValueError, match="reverses must be \\[G\\] = \\[2\\] bools"):
+        SetSymmetries(sample["sym_p2p"], reverses=[True])
     with pytest.raises(ValueError, match="sym_p2p has 5 vertices but sample"):
         SetSymmetries(torch.zeros(1, 5, dtype=torch.long))(sample)
     with pytest.raises(ValueError, match="sym_p2p must be \\[G, V\\] long"):
         SetSymmetries(torch.zeros(5))
 
 
-def test_apply_symmetry_moves_points_with_their_images(sym_sample):
+def _signed_volume(verts, faces):
+    tri = verts[faces]
+    return torch.linalg.det(tri).sum() / 6
+
+
+def test_apply_symmetry_relabel_moves_only_the_ground_truth(sym_sample):
     sample, mirror = sym_sample
-    out = apply_symmetry(sample, 1)
-    # per-vertex fields are pulled back: x'[i] = x[g(i)]
-    assert torch.equal(out["verts"], sample["verts"][mirror])
-    assert torch.equal(out["hks"], sample["hks"][mirror])
-    # ground truth still names the same points: x'[corr'[k]] = x[corr[k]]
-    assert torch.equal(out["verts"][out["corr"]], sample["verts"][sample["corr"]])
-    # the basis moves with the vertices: evecs' = evecs @ S ≈ evecs[g], exactly orthonormal
-    torch.testing.assert_close(out["evecs"], sample["evecs"] @ sample["sym_fmap"][1])
-    torch.testing.assert_close(out["evecs"], sample["evecs"][mirror], atol=1e-6, rtol=0)
-    m = out["mass"]
-    torch.testing.assert_close(out["evecs"].mT @ (m[:, None] * out["evecs"]),
-                               torch.eye(12, dtype=torch.float64))
-    # so a moved function keeps its coefficients, and the group's matrices are unchanged in it
-    f = sample["verts"][:, 1:2]
-    a = sample["evecs"].mT @ (sample["mass"][:, None] * f)
-    a2 = out["evecs"].mT @ (m[:, None] * f[mirror])
-    torch.testing.assert_close(a2, a, atol=1e-8, rtol=0)
-    torch.testing.assert_close(out["sym_fmap"], sample["sym_fmap"])
-    torch.testing.assert_close(symmetry_fmaps(out["sym_p2p"], out["evecs"], m), out["sym_fmap"],
-                               atol=1e-6, rtol=0)
-    # intrinsic keys stay, and the mirror applied twice is the identity
-    for key in ("mass", "evals", "bands", "faces"):
-        assert torch.equal(out[key], sample[key]), key
-    twice = apply_symmetry(out, 1)
-    for key in ("verts", "hks", "corr", "sym_p2p"):
-        assert torch.equal(twice[key], sample[key]), key
-    torch.testing.assert_close(twice["evecs"], sample["evecs"], atol=1e-8, rtol=0)
-    same = apply_symmetry(sample, 0)
-    for key in ("verts", "evecs", "corr", "sym_p2p"):
-        torch.testing.assert_close(same[key], sample[key], atol=1e-10, rtol=0)
+    s = dict(sample, corr_sym=mirror[sample["corr"]])
+    s["corr"] = torch.where(torch.arange(len(mirror)) % 9 == 0, -1, s["corr"])  # -1: missing
+    out = apply_symmetry(s, 1)
+    # the template point k is now at the image of its old vertex; -1 stays -1
+    ok = s["corr"] >= 0
+    assert torch.equal(out["corr"][ok], mirror[s["corr"][ok]])
+    assert (out["corr"][~ok] == -1).all()
+    assert torch.equal(out["corr_sym"], mirror[s["corr_sym"]])
+    # exact reflection: corr' is the old corr_sym, corr_sym' the old corr
+    assert torch.equal(out["corr"][ok], s["corr_sym"][ok]) and torch.equal(out["corr_sym"],
+                                                                           sample["corr"])
+    # nothing geometric, spectral or group-theoretic moves
+    for key in ("verts", "faces", "mass", "evals", "evecs", "bands", "hks", "wks", "sym_p2p",
+                "sym_fmap", "sym_reverses"):
+        assert torch.equal(out[key], s[key]), key
+    assert torch.equal(apply_symmetry(out, 1)["corr"], s["corr"])  # an involution
+    assert torch.equal(apply_symmetry(s, 0)["corr"], s["corr"])  # the identity
 
 
-def test_apply_symmetry_approximate_map_uses_group_inverse(sym_sample):
-    # a non-bijective map (one vertex's image changed): the inverse comes from the group's matrices
+def test_apply_symmetry_mirror_keeps_an_outward_mesh(sym_sample):
+    sample, mirror = sym_sample
+    D, K = 3, sample["evecs"].shape[1]
+    s = dict(sample, corr_sym=mirror[sample["corr"]],
+             normals=torch.nn.functional.normalize(sample["verts"], dim=-1),
+             orient_op=torch.randn(D, K, K, generator=torch.Generator().manual_seed(0),
+                                   dtype=torch.float64))
+    for axis in (0, 1, 2):
+        out = apply_symmetry(s, 1, mode="mirror", axis=axis)
+        M = torch.ones(3, dtype=torch.float64)
+        M[axis] = -1
+        assert torch.equal(out["verts"], s["verts"] * M), axis
+        assert torch.equal(out["normals"], s["normals"] * M), axis
+        assert torch.equal(out["faces"], s["faces"][:, [0, 2, 1]]), axis
+        assert torch.equal(out["orient_op"], -s["orient_op"]), axis
+        # still outward: same signed volume, face normals are the mirrored ones
+        torch.testing.assert_close(_signed_volume(out["verts"], out["faces"]),
+                                   _signed_volume(s["verts"], s["faces"]))
+        assert _signed_volume(out["verts"], out["faces"]) > 0
+        n0 = torch.linalg.cross(*(s["verts"][s["faces"][:, i]] - s["verts"][s["faces"][:, 0]]
+                                  for i in (1, 2)))
+        n1 = torch.linalg.cross(*(out["verts"][out["faces"][:, i]]
+                                  - out["verts"][out["faces"][:, 0]] for i in (2, 1)))
+        torch.testing.assert_close(-n1, n0 * M, msg=f"axis={axis}")
+        # the ground truth is composed with the reflection, the intrinsic fields stay
+        assert torch.equal(out["corr"], mirror[s["corr"]]) and torch.equal(out["corr"],
+                                                                           s["corr_sym"])
+        for key in ("mass", "evals", "evecs", "hks", "sym_p2p", "sym_fmap", "sym_reverses"):
+            assert torch.equal(out[key], s[key]), (axis, key)
+    twice = apply_symmetry(apply_symmetry(s, 1, mode="mirror"), 1, mode="mirror")
+    for key in ("verts", "faces", "normals", "orient_op", "corr", "corr_sym"):
+        assert torch.equal(twice[key], s[key]), key
+    # mirror_shape alone touches only the extrinsic fields
+    alone = mirror_shape(s)
+    assert torch.equal(alone["corr"], s["corr"]) and torch.equal(alone["evecs"], s["evecs"])
+
+
+def test_apply_symmetry_with_a_rough_map_keeps_the_mesh(sym_sample):
+    # a non-bijective map (as detected or remeshed maps are): faces never degenerate
     sample, mirror = sym_sample
     rough = mirror.clone()
     rough[0] = rough[1]
     s = dict(sample, sym_p2p=torch.stack([torch.arange(len(mirror)), rough]))
-    out = apply_symmetry(s, 1)
-    assert torch.equal(out["corr"], rough[sample["corr"]])  # the reflection is its own inverse
-    assert torch.equal(out["verts"], sample["verts"][rough])
-    moved = out["verts"][out["corr"]] != sample["verts"][sample["corr"]]
-    assert moved.any(-1).sum() <= 2  # only where the rough map is not a bijection
+    for mode in ("relabel", "mirror"):
+        out = apply_symmetry(s, 1, mode=mode)
+        assert torch.equal(out["corr"], rough[sample["corr"]]), mode
+        f = out["faces"]
+        assert ((f != f.roll(1, -1)).all(-1)).all(), mode
+        assert torch.equal(f.sort(-1).values, sample["faces"].sort(-1).values), mode
 
 
 def test_apply_symmetry_errors(sym_sample):
     sample, _ = sym_sample
     with pytest.raises(ValueError, match="index must be in \\[0, 1\\], got 2"):
         apply_symmetry(sample, 2)
+    with pytest.raises(ValueError, match="mode must be one of \\('relabel', 'mirror'\\), got 'move'"):
+        apply_symmetry(sample, 1, mode="move")
+    with pytest.raises(ValueError, match="mode must be one of"):
+        RandomSymmetry(mode="flip")
+    with pytest.raises(ValueError, match="axis must be 0, 1 or 2"):
+        apply_symmetry(sample, 1, mode="mirror", axis=3)
+    with pytest.raises(ValueError, match="element 0 preserves orientation"):
+        apply_symmetry(sample, 0, mode="mirror")
+    no_rev = {k: v for k, v in sample.items() if k != "sym_reverses"}
+    with pytest.raises(ValueError, match="needs sample keys \\['sym_reverses'\\]"):
+        apply_symmetry(no_rev, 1, mode="mirror")
+    with pytest.raises(ValueError, match="needs sample keys \\['sym_reverses'\\]"):
+        RandomSymmetry(mode="mirror")(no_rev)
+    apply_symmetry(no_rev, 1)  # relabelling does not need it
     no_sym = {k: v for k, v in sample.items() if not k.startswith("sym_")}
-    with pytest.raises(ValueError, match="run DetectSymmetries or SetSymmetries"):
+    with pytest.raises(ValueError, match="run DetectSymmetries, SetSymmetries or "
+                                         "SymmetryFromCorrespondence"):
         RandomSymmetry()(no_sym)
-    with pytest.raises(ValueError, match="needs sample keys \\['sym_fmap'\\]"):
-        apply_symmetry({k: v for k, v in sample.items() if k != "sym_fmap"}, 1)
+
+
+def test_random_symmetry_mirror_mode_mirrors_only_reversing_elements(sym_sample):
+    sample, mirror = sym_sample
+    t = RandomSymmetry(mode="mirror", generator=torch.Generator().manual_seed(0))
+    outs = [t(sample) for _ in range(30)]
+    flipped = [bool(torch.equal(o["corr"], mirror[sample["corr"]])) for o in outs]
+    assert 0 < sum(flipped) < 30, flipped
+    for o, f in zip(outs, flipped):  # mirrored exactly when the reflection was drawn
+        assert torch.equal(o["faces"], sample["faces"][:, [0, 2, 1]] if f else sample["faces"])
+    # a rotation (here: the reflection's flag cleared) is relabelled, never mirrored
+    rot = dict(sample, sym_reverses=torch.tensor([False, False]))
+    for _ in range(10):
+        assert torch.equal(t(rot)["faces"], sample["faces"])
 
 
 @pytest.mark.parametrize("cls", [RandomSymmetry, RandomEigenSigns, RandomBandRotation])
 def test_random_transforms_are_deterministic_under_a_generator(sym_sample, cls):
     sample, _ = sym_sample
+    key = "corr" if cls is RandomSymmetry else "evecs"  # what each one draws
     runs = []
     for _ in range(2):
         t = cls(generator=torch.Generator().manual_seed(3))
         runs.append([t(sample) for _ in range(6)])
     for a, b in zip(*runs):
-        assert torch.equal(a["evecs"], b["evecs"]) and torch.equal(a["verts"], b["verts"]), cls
+        assert torch.equal(a["evecs"], b["evecs"]) and torch.equal(a["corr"], b["corr"]), cls
     # and they do draw: six calls are not all alike
-    assert len({tuple(o["evecs"][0].tolist()) for o in runs[0]}) > 1, cls
+    assert len({tuple(o[key][:4].flatten().tolist()) for o in runs[0]}) > 1, cls
 
 
 def test_random_symmetry_draws_each_element(sym_sample):
     sample, mirror = sym_sample
     t = RandomSymmetry(generator=torch.Generator().manual_seed(0))
-    moved = [bool(torch.equal(t(sample)["verts"], sample["verts"][mirror])) for _ in range(20)]
+    moved = [bool(torch.equal(t(sample)["corr"], mirror[sample["corr"]])) for _ in range(20)]
     assert 0 < sum(moved) < 20, moved
 
 
@@ -217,6 +291,7 @@ def test_detect_symmetries_transform():
     assert out["sym_fmap"].shape == (G, 40, 40)
     assert torch.equal(out["sym_p2p"][0], torch.arange(V))
     assert G == 2, f"the mirror was not found: scores {out['sym_score'].tolist()}"
+    assert out["sym_reverses"].tolist() == [False, True]
     assert (out["sym_p2p"][1] == mirror).double().mean() > 0.9
 
 
@@ -233,9 +308,9 @@ def test_augmentations_on_device(sym_sample, cls, cuda_device):
             if torch.is_tensor(val):
                 assert out[key].device == torch.device(device), (cls.__name__, key)
                 torch.testing.assert_close(out[key].cpu(), val, msg=f"{cls.__name__} {key}")
-    # the group inverse (used for a map that is not a bijection) on the device too
+    # a map that is not a bijection, mirrored, on the device too
     rough = on_dev["sym_p2p"].clone()
     rough[1, 0] = rough[1, 1]
-    out = apply_symmetry(dict(on_dev, sym_p2p=rough), 1)
-    assert out["corr"].device == torch.device(device)
+    out = apply_symmetry(dict(on_dev, sym_p2p=rough), 1, mode="mirror")
+    assert out["corr"].device == out["faces"].device == torch.device(device)
     assert torch.equal(out["corr"].cpu(), rough[1].cpu()[sample["corr"]])

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import logging
 import os
@@ -17,14 +18,18 @@ from torch import Tensor
 from torch.utils.data import Dataset
 
 from ..io import atomic_write, read_mesh
+from .layouts import class_key, corres_dir, find_layout, read_geodesic_matrix
 
 log = logging.getLogger(__name__)
 
 __all__ = ["MeshDataset", "PairDataset", "read_sample", "process_file", "corr_to_fmap",
-           "default_cache_dir"]
+           "default_cache_dir", "PAIR_MODES"]
 
-MESH_SUFFIXES = (".off", ".obj", ".ply")
+MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl")
+_CACHE_FORMAT = 2  # .pt files hold {"key", "mesh", "sample"}; meta.json entries carry checksums
 _GROUND_TRUTH = (None, "template", "vts")
+#: The pair sets :class:`PairDataset` builds by name.
+PAIR_MODES = ("all", "same_class")
 
 
 def _natural_key(name: str):
@@ -53,8 +58,10 @@ def read_sample(path: str | os.PathLike, dtype: torch.dtype = torch.float32,
             - ``None``: none;
             - ``"template"``: every mesh of the folder is the same template in another pose, with the
               same vertex order (SCAPE): ``corr = arange(V)``;
-            - ``"vts"``: the BCICP layout (``corres/<name>.vts`` and ``corres/<name>.sym.vts`` beside the
-              mesh, 1-based vertex ids, one per line; FAUST and TOSCA remeshed to 5k vertices);
+            - ``"vts"``: ``corres/<name>.vts`` and, when present, ``corres/<name>.sym.vts`` (1-based
+              vertex ids, one per line), with ``corres/`` inside the mesh folder (BCICP:
+              ``vtx_5k/corres``) or beside it (FAUST_r / SCAPE_r: ``off/`` and ``corres/``; see
+              :mod:`symtorch.data.layouts`);
             - a callable ``path -> dict`` of extra tensors, merged into the sample.
 
     Returns:
@@ -70,7 +77,12 @@ def read_sample(path: str | os.PathLike, dtype: torch.dtype = torch.float32,
     if ground_truth == "template":
         sample["corr"] = torch.arange(V)
     elif ground_truth == "vts":
-        corres = path.parent / "corres"
+        corres = corres_dir(path.parent)
+        if corres is None:
+            raise FileNotFoundError(f"ground_truth='vts' needs a corres/ folder in or beside "
+                                    f"{path.parent}")
+        if not (corres / f"{path.stem}.vts").exists():
+            raise FileNotFoundError(f"ground_truth='vts': no {path.stem}.vts in {corres}")
         sample["corr"] = _read_ids(corres / f"{path.stem}.vts")
         if (corres / f"{path.stem}.sym.vts").exists():
             sample["corr_sym"] = _read_ids(corres / f"{path.stem}.sym.vts")
@@ -101,33 +113,88 @@ def _version() -> str:
 
 
 def file_stamp(path: Path) -> list[int]:
-    """``[size, mtime_ns]`` of a mesh file: a cached sample is valid while its file's stamp holds."""
+    """``[size, mtime_ns, ctime_ns]`` of a mesh file: while it holds, the file is unchanged.
+
+    The change time is in it because copies that keep the modification time (``cp -p``,
+    ``rsync -t``, ``tar x``) cannot set it back; a stamp that changed with the same contents (a copy
+    of the whole folder) costs one content hash, not a reprocessing.
+    """
     st = Path(path).stat()
-    return [st.st_size, st.st_mtime_ns]
+    return [st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's contents."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def cache_problem(meta: dict | None, key: dict, name: str, raw: Path, out: Path, *,
+                  checksum: bool = True) -> str | None:
+    """Why ``out`` does not hold ``raw`` processed under ``key``, or None when it does.
+
+    The one staleness rule of the caches: ``meta`` (the folder's ``meta.json``) has the same key and
+    an entry for ``name`` whose mesh is ``raw`` (same stamp, or else same content hash: the stamp
+    is then refreshed in the entry), and ``out`` has the size and, with ``checksum``, the SHA-256
+    recorded there.
+
+    Returns:
+        None, or a reason: ``"not cached"``, ``"mesh changed"`` (both call for processing, not for
+        a warning), or what is wrong with ``out`` (``"cache file missing"``, ``"cache file has
+        1234 bytes, not 5678 (truncated or replaced)"``, ``"cache file does not match its checksum
+        (damaged or replaced)"``).
+    """
+    if meta is None or meta.get("key") != key:
+        return "not cached"
+    entry = meta.get("files", {}).get(name)
+    if not isinstance(entry, dict) or not {"stamp", "mesh", "sha256", "bytes"} <= entry.keys():
+        return "not cached"
+    stamp = file_stamp(raw)
+    if stamp != entry["stamp"]:
+        if file_sha256(raw) != entry["mesh"]:
+            return "mesh changed"
+        entry["stamp"] = stamp  # same contents (a copy, a touch): the cache still holds
+    try:
+        size = out.stat().st_size
+    except FileNotFoundError:
+        return "cache file missing"
+    if size != entry["bytes"]:
+        return f"cache file has {size} bytes, not {entry['bytes']} (truncated or replaced)"
+    if checksum and file_sha256(out) != entry["sha256"]:
+        return "cache file does not match its checksum (damaged or replaced)"
+    return None
 
 
 def cache_is_current(meta: dict | None, key: dict, name: str, raw: Path, out: Path) -> bool:
-    """Whether ``out`` holds ``raw`` processed under ``key``: the folder's ``meta`` has the same key
-    and ``raw``'s file stamp, and ``out`` exists (the one staleness rule of the caches)."""
-    return (meta is not None and meta.get("key") == key and out.exists()
-            and meta.get("files", {}).get(name) == file_stamp(raw))
+    """Whether ``out`` holds ``raw`` processed under ``key`` (:func:`cache_problem` finds nothing)."""
+    return cache_problem(meta, key, name, raw, out) is None
 
 
 def cache_key(pre_transform: Callable[[dict], dict] | None, dtype: torch.dtype,
               ground_truth: str | Callable[[Path], dict] | None) -> dict:
-    """What a cached sample depends on besides its mesh file (``meta.json["key"]``)."""
+    """What a cached sample depends on besides its mesh file (``meta.json["key"]``, and in each
+    ``.pt``): the pre-transform's repr, the package version, ``dtype``, the ground truth and the
+    layout of the cache files."""
     gt = ground_truth if isinstance(ground_truth, str) or ground_truth is None \
         else getattr(ground_truth, "__qualname__", repr(ground_truth))
     return {"pre_transform": repr(pre_transform), "version": _version(), "dtype": str(dtype),
-            "ground_truth": gt}
+            "ground_truth": gt, "format": _CACHE_FORMAT}
 
 
 def read_meta(processed_dir: Path) -> dict | None:
-    """``processed_dir/meta.json`` (``{"key": ..., "files": {name: stamp}}``), None if absent or bad."""
+    """``processed_dir/meta.json`` (``{"key": ..., "files": {name: entry}}``), None if absent or bad.
+
+    An entry is ``{"stamp": file_stamp(mesh), "mesh": its SHA-256, "sha256": SHA-256 of the .pt,
+    "bytes": its size}``.
+    """
     try:
-        return json.loads((Path(processed_dir) / "meta.json").read_text())
+        meta = json.loads((Path(processed_dir) / "meta.json").read_text())
     except (OSError, ValueError):
         return None
+    return meta if isinstance(meta, dict) and isinstance(meta.get("files"), dict) else None
 
 
 def write_meta(processed_dir: Path, meta: dict) -> None:
@@ -138,6 +205,34 @@ def write_meta(processed_dir: Path, meta: dict) -> None:
     atomic_write(Path(processed_dir) / "meta.json", write)
 
 
+def process_entry(raw: str | os.PathLike, out: str | os.PathLike,
+                  pre_transform: Callable[[dict], dict] | None = None,
+                  dtype: torch.dtype = torch.float32,
+                  ground_truth: str | Callable[[Path], dict] | None = None) -> tuple[dict, dict]:
+    """:func:`process_file`, also returning the ``meta.json`` entry of the file written.
+
+    Returns:
+        (the saved sample, its entry ``{"stamp", "mesh", "sha256", "bytes"}``).
+    """
+    raw, out = Path(raw), Path(out)
+    stamp, mesh = file_stamp(raw), file_sha256(raw)  # before reading: a file changed meanwhile is redone
+    sample = read_sample(raw, dtype, ground_truth)
+    if pre_transform is not None:
+        sample = pre_transform(sample)
+    payload = {"key": cache_key(pre_transform, dtype, ground_truth), "mesh": mesh, "sample": sample}
+    buf = io.BytesIO()
+    torch.save(payload, buf)
+    data = buf.getvalue()
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+
+    atomic_write(out, write)
+    return sample, {"stamp": stamp, "mesh": mesh, "sha256": hashlib.sha256(data).hexdigest(),
+                    "bytes": len(data)}
+
+
 def process_file(raw: str | os.PathLike, out: str | os.PathLike,
                  pre_transform: Callable[[dict], dict] | None = None,
                  dtype: torch.dtype = torch.float32,
@@ -145,16 +240,33 @@ def process_file(raw: str | os.PathLike, out: str | os.PathLike,
     """Read one mesh, apply ``pre_transform`` and save the sample to ``out`` (atomically).
 
     The one code path that fills a cache: :class:`MeshDataset` and ``symtorch precompute`` both call
-    it, so either can read what the other wrote.
+    it, so either can read what the other wrote. The file holds ``{"key": cache_key(...), "mesh":
+    SHA-256 of the mesh file, "sample": sample}`` (:func:`load_cache_file` checks and unwraps it).
 
     Returns:
         the saved sample.
     """
-    sample = read_sample(raw, dtype, ground_truth)
-    if pre_transform is not None:
-        sample = pre_transform(sample)
-    atomic_write(Path(out), lambda tmp: torch.save(sample, tmp))
-    return sample
+    return process_entry(raw, out, pre_transform, dtype, ground_truth)[0]
+
+
+def load_cache_file(out: Path, entry: dict, key: dict) -> dict:
+    """The sample in cache file ``out``, checked against its ``meta.json`` entry and the key.
+
+    Raises:
+        ValueError: the file's size or SHA-256 is not the entry's, it cannot be loaded, or it was
+            made under another key or from another mesh.
+    """
+    data = Path(out).read_bytes()
+    if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry.get("sha256"):
+        raise ValueError(f"{out}: cache file does not match its checksum (damaged or replaced)")
+    try:
+        payload = torch.load(io.BytesIO(data), weights_only=True)
+    except Exception as e:  # noqa: BLE001 -- checksum right but unreadable: treat as damaged
+        raise ValueError(f"{out}: cache file cannot be loaded ({type(e).__name__})") from None
+    if not isinstance(payload, dict) or payload.get("key") != key \
+            or payload.get("mesh") != entry.get("mesh") or not isinstance(payload.get("sample"), dict):
+        raise ValueError(f"{out}: cache file was made under another key or from another mesh")
+    return payload["sample"]
 
 
 class MeshDataset(Dataset):
@@ -162,14 +274,24 @@ class MeshDataset(Dataset):
 
     Processing reads each mesh (:func:`read_sample`), applies ``pre_transform`` and saves the sample to
     ``processed_dir/<name>.pt``; ``processed_dir/meta.json`` records the cache key,
-    ``repr(pre_transform)``, the package version, ``dtype`` and ``ground_truth``, and the size and
-    modification time of each mesh file. A later construction loads the cache; when the key differs
-    it warns and processes everything again, and it reprocesses meshes whose file changed or that are
-    new. Writes are atomic (temporary file + ``os.replace``). ``__getitem__`` loads one file
-    (``torch.load(weights_only=True)``) and applies ``transform``.
+    ``repr(pre_transform)``, the package version, ``dtype`` and ``ground_truth``, and for each mesh
+    its file's stamp and content hash and the size and SHA-256 of its ``.pt`` (which holds the key
+    and the mesh hash too). A later construction loads the cache; when the key differs it warns and
+    processes everything again, and it reprocesses meshes whose contents changed (also behind a
+    restored modification time) or that are new. Writes are atomic (temporary file +
+    ``os.replace``). ``__getitem__`` loads one file (``torch.load(weights_only=True)``), checked
+    against its checksum, key and mesh hash, and applies ``transform``; a file that does not verify
+    (truncated, damaged, copied from another cache) is processed again with a warning.
+
+    For the field's folder layouts (``root/off`` + ``root/corres`` + ``root/dist``, or BCICP's
+    ``root/vtx_5k``) use :meth:`from_layout`, which finds the folders and the ground truth.
+
+    Geodesic matrices (``dist_dir/<name>.mat``, ``[V, V]``) are never cached or loaded with the
+    samples: each sample gets the path, ``dist_path`` (a str, ``""`` where that shape has none), and
+    :meth:`geodesic_matrix` loads one when asked.
 
     Args:
-        root: folder holding the mesh files (``.off``, ``.obj``, ``.ply``).
+        root: folder holding the mesh files (``.off``, ``.obj``, ``.ply``, ``.stl``).
         pre_transform: deterministic, expensive transform whose output is cached.
         transform: cheap (possibly random) transform applied on every access.
         processed_dir: cache folder; default :func:`default_cache_dir` (not inside ``root``).
@@ -177,19 +299,22 @@ class MeshDataset(Dataset):
         ground_truth: see :func:`read_sample`.
         dtype: floating dtype of the raw ``verts`` (spectral keys follow it).
         force_reload: process everything again even if the cache matches.
+        dist_dir: folder of geodesic matrices ``<name>.mat`` (MATLAB variable ``dist``); None: none.
 
     Example:
         >>> ds = MeshDataset("FAUST/vtx_5k", ground_truth="vts",
         ...                  pre_transform=Compose([NormalizeArea(), ComputeSpectrum(30)]))
         >>> ds[0]["evecs"].shape
         torch.Size([4999, 30])
+        >>> faust_r = MeshDataset.from_layout("FAUST_r", pre_transform=ComputeSpectrum(30))
     """
 
     def __init__(self, root: str | os.PathLike, pre_transform: Callable[[dict], dict] | None = None,
                  transform: Callable[[dict], dict] | None = None, *,
                  processed_dir: str | os.PathLike | None = None, names: Sequence[str] | None = None,
                  ground_truth: str | Callable[[Path], dict] | None = None,
-                 dtype: torch.dtype = torch.float32, force_reload: bool = False):
+                 dtype: torch.dtype = torch.float32, force_reload: bool = False,
+                 dist_dir: str | os.PathLike | None = None):
         self.root = Path(root)
         if not self.root.is_dir():
             raise FileNotFoundError(f"mesh folder not found: {self.root}")
@@ -199,6 +324,7 @@ class MeshDataset(Dataset):
         self.pre_transform, self.transform = pre_transform, transform
         self.ground_truth, self.dtype = ground_truth, dtype
         self.processed_dir = Path(processed_dir) if processed_dir else default_cache_dir(self.root)
+        self.dist_dir = Path(dist_dir) if dist_dir is not None else None
         files = {p.stem: p for p in self.root.iterdir() if p.suffix.lower() in MESH_SUFFIXES}
         if names is None:
             names = sorted(files, key=_natural_key)
@@ -206,10 +332,32 @@ class MeshDataset(Dataset):
         if missing:
             raise FileNotFoundError(f"no mesh named {missing[:3]} in {self.root}")
         if not names:
-            raise FileNotFoundError(f"no {'/'.join(MESH_SUFFIXES)} files in {self.root}")
+            hint = next((f"; MeshDataset.from_layout(root) reads {self.root / sub}"
+                         for sub in ("off", "vtx_5k") if (self.root / sub).is_dir()), "")
+            raise FileNotFoundError(f"no {'/'.join(MESH_SUFFIXES)} files in {self.root}{hint}")
         self.names = list(names)
         self.raw_paths = [files[n] for n in self.names]
         self.process(force=force_reload)
+
+    @classmethod
+    def from_layout(cls, root: str | os.PathLike,
+                    pre_transform: Callable[[dict], dict] | None = None,
+                    transform: Callable[[dict], dict] | None = None, **kwargs) -> MeshDataset:
+        """A dataset in one of the field's folder layouts (:func:`symtorch.data.layouts.find_layout`).
+
+        ``root/off`` (FAUST_r, SCAPE_r, SHREC'19_r), ``root/vtx_5k`` (BCICP), or the mesh folder
+        itself. Ground truth is ``"vts"`` when a ``corres/`` folder exists (else None) and the
+        geodesic matrices are those of the ``dist/`` folder, unless ``kwargs`` say otherwise.
+
+        Args:
+            root: the dataset folder.
+            pre_transform, transform: as for the constructor.
+            **kwargs: other keywords of the constructor (``processed_dir``, ``names``, ...).
+        """
+        layout = find_layout(root)
+        kwargs.setdefault("ground_truth", "vts" if layout.corres is not None else None)
+        kwargs.setdefault("dist_dir", layout.dist)
+        return cls(layout.meshes, pre_transform, transform, **kwargs)
 
     # ------------------------------------------------------------------------------------- cache
     @property
@@ -247,14 +395,23 @@ class MeshDataset(Dataset):
                           stacklevel=3)
         if force or meta is None or meta.get("key") != key:
             meta = {"key": key, "files": {}}
+        before = json.dumps(meta["files"], sort_keys=True)
         todo = []
         for name, raw, out in zip(self.names, self.raw_paths, self.processed_paths):
-            if not cache_is_current(meta, key, name, raw, out):
-                todo.append((name, raw, out, file_stamp(raw)))
-        for i, (name, raw, out, stamp) in enumerate(todo):
+            # sizes here; each file's checksum when get() loads it
+            problem = cache_problem(meta, key, name, raw, out, checksum=False)
+            if problem is None:
+                continue
+            if problem not in ("not cached", "mesh changed"):
+                warnings.warn(f"{out}: {problem}; processing {name} again", stacklevel=3)
+            todo.append((name, raw, out))
+        self._key, self._meta = key, meta
+        if not todo and json.dumps(meta["files"], sort_keys=True) != before:
+            self._write_meta(meta)  # stamps refreshed for unchanged contents
+        for i, (name, raw, out) in enumerate(todo):
             t0 = time.perf_counter()
-            process_file(raw, out, self.pre_transform, self.dtype, self.ground_truth)
-            meta["files"][name] = stamp
+            _, meta["files"][name] = process_entry(raw, out, self.pre_transform, self.dtype,
+                                                   self.ground_truth)
             self._write_meta(meta)  # after each mesh: an interrupted run resumes where it stopped
             log.info("processed %s (%d/%d) in %.2fs", name, i + 1, len(todo),
                      time.perf_counter() - t0)
@@ -265,8 +422,40 @@ class MeshDataset(Dataset):
         return len(self.names)
 
     def get(self, index: int) -> dict:
-        """The cached (pre-transformed) sample, without ``transform``."""
-        return torch.load(self.processed_path(index), weights_only=True)  # O(1), not a list per item
+        """The cached (pre-transformed) sample, without ``transform`` (plus ``dist_path`` when the
+        dataset has a ``dist_dir``)."""
+        name, out = self.names[index], self.processed_path(index)
+        try:  # O(1), not a list per item; checked against meta.json's checksum and the key
+            sample = load_cache_file(out, self._meta["files"].get(name, {}), self._key)
+        except (OSError, ValueError) as e:
+            warnings.warn(f"{' '.join(str(e).split())}; processing {name} again", stacklevel=2)
+            sample, self._meta["files"][name] = process_entry(
+                self.raw_paths[index], out, self.pre_transform, self.dtype, self.ground_truth)
+            self._write_meta(self._meta)
+        if self.dist_dir is not None:
+            path = self.dist_path(index)
+            sample["dist_path"] = "" if path is None else str(path)
+        return sample
+
+    def dist_path(self, index: int) -> Path | None:
+        """The geodesic matrix file of shape ``index``, or None."""
+        if self.dist_dir is None:
+            return None
+        path = self.dist_dir / f"{self.names[index]}.mat"
+        return path if path.exists() else None
+
+    def geodesic_matrix(self, index: int, dtype: torch.dtype | None = None) -> Tensor:
+        """The ``[V, V]`` geodesic matrix of shape ``index``, read from its file (not cached), in the
+        units of the mesh file (multiply by the sample's ``scale`` after :class:`NormalizeArea`).
+
+        Raises:
+            FileNotFoundError: the shape has no geodesic matrix.
+        """
+        path = self.dist_path(index)
+        if path is None:
+            raise FileNotFoundError(f"no geodesic matrix {self.names[index]}.mat in "
+                                    f"{self.dist_dir}")
+        return read_geodesic_matrix(path, dtype)
 
     def __getitem__(self, index: int) -> dict:
         sample = self.get(index)
@@ -275,6 +464,19 @@ class MeshDataset(Dataset):
     def __repr__(self) -> str:
         return (f"{type(self).__name__}({str(self.root)!r}, n={len(self)}, "
                 f"pre_transform={self.pre_transform!r}, transform={self.transform!r})")
+
+
+def _item_names(dataset) -> list[str]:
+    """Shape names of a dataset's items without loading them where it can (``MeshDataset.names``,
+    through ``Subset``s), else from each item's ``name``."""
+    from torch.utils.data import Subset
+
+    if isinstance(dataset, MeshDataset):
+        return list(dataset.names)
+    if isinstance(dataset, Subset):
+        names = _item_names(dataset.dataset)
+        return [names[i] for i in dataset.indices]
+    return [dataset[i]["name"] for i in range(len(dataset))]
 
 
 def corr_to_fmap(corr_x: Tensor, corr_y: Tensor, evecs_x: Tensor, evecs_y: Tensor,
@@ -306,16 +508,30 @@ class PairDataset(Dataset):
 
     Args:
         dataset: a dataset of samples (``MeshDataset`` or a ``Subset`` of one).
-        pairs: ``(i, j)`` index pairs (x = item i, y = item j); default all ordered pairs.
-        include_self: with the default pairs, also pair each shape with itself.
+        pairs: ``(i, j)`` index pairs (x = item i, y = item j), or
+
+            - ``"all"`` (or None): all ordered pairs;
+            - ``"same_class"``: the ordered pairs of shapes of one class, ``class_of(name)`` (TOSCA:
+              cat with cat, ...; the default class is the name without trailing digits).
+        include_self: with ``"all"`` or ``"same_class"``, also pair each shape with itself.
+        class_of: the class of a shape name, for ``"same_class"``.
     """
 
-    def __init__(self, dataset: Dataset, pairs: Sequence[tuple[int, int]] | None = None,
-                 include_self: bool = False):
+    def __init__(self, dataset: Dataset, pairs: Sequence[tuple[int, int]] | str | None = None,
+                 include_self: bool = False, class_of: Callable[[str], str] = class_key):
         self.dataset = dataset
         n = len(dataset)
-        if pairs is None:
-            pairs = [(i, j) for i in range(n) for j in range(n) if include_self or i != j]
+        if pairs is None or isinstance(pairs, str):
+            pairs = "all" if pairs is None else pairs
+            if pairs not in PAIR_MODES:
+                raise ValueError(f"pairs must be a list of (i, j) or one of {PAIR_MODES}, "
+                                 f"got {pairs!r}")
+            same = (lambda i, j: True)
+            if pairs == "same_class":
+                classes = [class_of(name) for name in _item_names(dataset)]
+                same = (lambda i, j: classes[i] == classes[j])
+            pairs = [(i, j) for i in range(n) for j in range(n)
+                     if (include_self or i != j) and same(i, j)]
         self.pairs = [(int(i), int(j)) for i, j in pairs]
         bad = [p for p in self.pairs if not (0 <= p[0] < n and 0 <= p[1] < n)]
         if bad:

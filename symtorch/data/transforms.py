@@ -10,8 +10,9 @@ Expensive, deterministic work goes in ``pre_transform``::
 
     Compose([NormalizeArea(), ComputeSpectrum(k=30), ComputeDescriptors(), DetectSymmetries()])
 
-and cheap augmentation in ``transform``: :class:`RandomSymmetry`, :class:`RandomEigenSigns`,
-:class:`RandomBandRotation`.
+and cheap augmentation in ``transform``: :class:`~symtorch.data.RandomSymmetry` (in
+:mod:`symtorch.data.symmetry`, with :class:`~symtorch.data.SymmetryFromCorrespondence`),
+:class:`RandomEigenSigns`, :class:`RandomBandRotation`.
 """
 from __future__ import annotations
 
@@ -27,9 +28,8 @@ from ..procrustes import block_project
 from ..spectrum import band_index, eigen_bands, laplacian_spectrum
 
 __all__ = ["VERTEX_FIELDS", "INDEX_FIELDS", "Compose", "NormalizeArea", "ComputeSpectrum",
-           "ComputeDescriptors", "DetectSymmetries", "SetSymmetries", "RandomSymmetry",
-           "RandomEigenSigns", "RandomBandRotation", "apply_symmetry", "change_basis",
-           "symmetry_fmaps", "bands_from_index"]
+           "ComputeDescriptors", "DetectSymmetries", "SetSymmetries", "RandomEigenSigns",
+           "RandomBandRotation", "change_basis", "symmetry_fmaps", "bands_from_index"]
 
 #: Keys whose rows are per-vertex values (dim 0 is V).
 VERTEX_FIELDS = ("verts", "normals", "mass", "evecs", "hks", "wks", "desc", "labels")
@@ -202,6 +202,10 @@ class ComputeDescriptors:
                 f"normalize={self.normalize})")
 
 
+#: ``Symmetry.kind`` values of orientation-reversing elements.
+_REVERSING = ("reflection", "rotoreflection")
+
+
 def _store_symmetries(sample: dict, sym_p2p: Tensor) -> dict:
     sample["sym_p2p"] = sym_p2p.long()
     if "evecs" in sample:
@@ -217,10 +221,13 @@ class DetectSymmetries:
     present (``ComputeSpectrum`` before it). ``sym_p2p`` holds the detected vertex maps, identity first;
     ``sym_fmap`` their matrices in the *sample's* basis, recomputed from the maps with
     :func:`symmetry_fmaps` (block-projected on the sample's bands), so that they match ``evecs`` whatever
-    basis size the detector refined in. ``sym_score [G]`` holds the detector's confidences.
+    basis size the detector refined in. ``sym_score [G]`` holds the detector's confidences and
+    ``sym_reverses [G]`` whether each element reverses orientation (its ``Symmetry.kind`` is
+    ``'reflection'`` or ``'rotoreflection'``).
 
     Args:
-        seed: seed of the generator handed to the detector (precompute must be deterministic).
+        seed: seed of the generator handed to the detector where it takes one (precompute must be
+            deterministic).
         **kwargs: keywords of ``detect_symmetries`` (``k``, ``k_refine``, ``mode``, ``min_score``, ...).
     """
 
@@ -243,10 +250,14 @@ class DetectSymmetries:
             area = 0.5 * torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).norm(dim=-1)
             spectrum = Spectrum(sample["evals"].double(), sample["evecs"].double(),
                                 sample["mass"].double(), float(area.sum().rsqrt()))
-        gen = torch.Generator().manual_seed(self.seed)
-        result = detect_symmetries(verts, faces, spectrum=spectrum, generator=gen, **self.kwargs)
+        extra = {}
+        if "generator" in inspect.signature(detect_symmetries).parameters:
+            extra["generator"] = torch.Generator().manual_seed(self.seed)
+        result = detect_symmetries(verts, faces, spectrum=spectrum, **extra, **self.kwargs)
         sample["sym_score"] = torch.tensor([float(s.score) for s in result.symmetries],
                                            dtype=sample["verts"].dtype)
+        sample["sym_reverses"] = torch.tensor([s.kind in _REVERSING for s in result.symmetries],
+                                              device=result.p2ps.device)
         return _store_symmetries(sample, result.p2ps)
 
     def __repr__(self) -> str:
@@ -255,140 +266,71 @@ class DetectSymmetries:
 
 
 class SetSymmetries:
-    """Attach known symmetries, given as vertex maps, and their matrices in the sample's basis.
+    """Attach known symmetries, given as vertex maps, their matrices in the sample's basis and their
+    orientation: ``sym_p2p [G, V]``, ``sym_fmap [G, K, K]``, ``sym_reverses [G]``.
 
     For ground truth, or for a dataset whose meshes share one template (SCAPE, FAUST registrations),
     where the maps detected once on one mesh hold for every mesh.
 
     Args:
         sym_p2p: [G, V] long vertex maps, identity first.
+        reverses: [G] bool, whether each element reverses orientation. None: decided on each sample
+            by the orientation vote of its faces (:func:`symtorch.groups.orientation_score` < 0; the
+            first element, the identity, is False); a point cloud then gets no ``sym_reverses``.
     """
 
-    def __init__(self, sym_p2p: Tensor):
+    def __init__(self, sym_p2p: Tensor, reverses: Tensor | None = None):
         sym_p2p = torch.as_tensor(sym_p2p)
         if sym_p2p.dim() != 2 or sym_p2p.is_floating_point():
             raise ValueError(f"sym_p2p must be [G, V] long, got {list(sym_p2p.shape)} {sym_p2p.dtype}")
         self.sym_p2p = sym_p2p.long()
         self._digest = hashlib.sha1(self.sym_p2p.numpy().tobytes()).hexdigest()[:12]
+        if reverses is not None:
+            reverses = torch.as_tensor(reverses)
+            if reverses.shape != (sym_p2p.shape[0],) or reverses.is_floating_point():
+                raise ValueError(f"reverses must be [G] = [{sym_p2p.shape[0]}] bools, got "
+                                 f"{list(reverses.shape)} {reverses.dtype}")
+            reverses = reverses.bool()
+        self.reverses = reverses
 
     def __call__(self, sample: dict) -> dict:
         V = sample["verts"].shape[0]
         if self.sym_p2p.shape[1] != V:
             raise ValueError(f"sym_p2p has {self.sym_p2p.shape[1]} vertices but sample "
                              f"{sample.get('name', '')!r} has {V}")
-        return _store_symmetries(dict(sample), self.sym_p2p.clone())
+        sample = dict(sample)
+        device = sample["verts"].device
+        sym_p2p = self.sym_p2p.to(device)
+        if self.reverses is not None:
+            sample["sym_reverses"] = self.reverses.to(device)
+        elif "faces" in sample:
+            from ..groups import orientation_score
+
+            score = orientation_score(sym_p2p, sample["verts"], sample["faces"])
+            rev = score < 0
+            rev[0] = False
+            sample["sym_reverses"] = rev
+        return _store_symmetries(sample, sym_p2p.clone())
 
     def __repr__(self) -> str:
         G, V = self.sym_p2p.shape
-        return f"{type(self).__name__}(G={G}, V={V}, sha1={self._digest})"
-
-
-def _inverse_map(sample: dict, index: int) -> Tensor:
-    """Vertex map of the inverse of group element ``index``: exact for a permutation, else the group
-    element whose matrix is nearest ``S.T`` (the group is closed) or whose map undoes it best."""
-    sym_p2p = sample["sym_p2p"]
-    p = sym_p2p[index]
-    V = p.shape[0]
-    if torch.equal(torch.sort(p).values, torch.arange(V, device=p.device)):
-        return torch.empty_like(p).scatter_(0, p, torch.arange(V, device=p.device))
-    if "sym_fmap" in sample:
-        S = sample["sym_fmap"]
-        j = (S - S[index].mT).square().sum((-2, -1)).argmin()
-    else:
-        j = (sym_p2p[:, p] == torch.arange(V, device=p.device)).sum(-1).argmax()
-    return sym_p2p[j]
-
-
-def _map_ids(ids: Tensor, pinv: Tensor) -> Tensor:
-    """Send vertex ids through ``pinv``, keeping -1 (no vertex) as is."""
-    return torch.where(ids >= 0, pinv[ids.clamp_min(0)], ids)
-
-
-def apply_symmetry(sample: dict, index: int) -> dict:
-    """Relabel a shape by one of its symmetries g (``sym_p2p[index]``, matrix ``S = sym_fmap[index]``).
-
-    New vertex i takes the role of old vertex ``g(i)``, i.e. everything is pulled back by g:
-
-    - per-vertex fields (``VERTEX_FIELDS`` but ``mass`` and ``evecs``): ``x'[i] = x[p2p_g[i]]``;
-    - ground-truth vertex ids (``INDEX_FIELDS``: ``corr``, ``corr_sym``): sent through ``g^-1`` so that
-      they still name the same point, ``x'[corr'[k]] = x[corr[k]]``: a point and its image move
-      together and ground truth stays valid;
-    - ``evecs' = evecs @ S``: the eigenbasis moves with the vertices, ``evecs[p2p_g] ≈ evecs @ S``
-      (equal for an exact symmetry). The product is used rather than the permuted rows because it
-      stays exactly mass-orthonormal (with the kept ``mass``) and spans the same eigenspaces band by
-      band (S is block-orthogonal) however rough the map ``p2p_g`` is; for an approximate symmetry
-      (a nearest-neighbour map, a posed shape) ``evecs[p2p_g]`` is neither. So the coefficients of a
-      moved function are (approximately) unchanged: ``x' ≈ evecs' @ a`` when ``x = evecs @ a``;
-    - the group is conjugated, ``h' = g^-1 ∘ h ∘ g`` (``sym_p2p'[h] = p2p_g^-1[sym_p2p[h][p2p_g]]``);
-      in the moved basis its matrices are unchanged, ``sym_fmap' = sym_fmap``;
-    - ``mass``, ``evals``, ``bands``, ``faces`` stay: they describe the surface, which g maps onto
-      itself. Per vertex, ``mass[p2p_g] = mass`` and g sends faces to faces only where the
-      triangulation itself is symmetric; keeping ``mass`` keeps ``evecs'`` exactly orthonormal.
-
-    Args:
-        sample: with ``sym_p2p [G, V]`` (and ``sym_fmap [G, K, K]`` when it has ``evecs``).
-        index: the group element, ``0 <= index < G``.
-
-    Returns:
-        a new sample.
-    """
-    _require(sample, ("sym_p2p",), "apply_symmetry", "run DetectSymmetries or SetSymmetries first")
-    G = sample["sym_p2p"].shape[0]
-    if not 0 <= index < G:
-        raise ValueError(f"index must be in [0, {G - 1}], got {index}")
-    if "evecs" in sample:
-        _require(sample, ("sym_fmap",), "apply_symmetry", "to move the basis")
-    out = dict(sample)
-    p = sample["sym_p2p"][index]
-    pinv = _inverse_map(sample, index)
-    for key in VERTEX_FIELDS:
-        if key in out and key not in ("mass", "evecs"):
-            out[key] = out[key][p]
-    for key in INDEX_FIELDS:
-        if key in out:
-            out[key] = _map_ids(out[key], pinv)
-    if "evecs" in out:
-        out["evecs"] = out["evecs"] @ sample["sym_fmap"][index]
-    out["sym_p2p"] = pinv[sample["sym_p2p"][:, p]]
-    return out
-
-
-class RandomSymmetry:
-    """Relabel the shape by a random element of its symmetry group (uniform, identity included).
-
-    See :func:`apply_symmetry` for exactly what moves: per-vertex fields and ground-truth vertex ids
-    move together, the eigenbasis becomes ``evecs @ S``. Shapes without ``sym_p2p`` raise.
-
-    Args:
-        generator: source of the one draw per call.
-    """
-
-    def __init__(self, generator: torch.Generator | None = None):
-        self.generator = generator
-
-    def __call__(self, sample: dict) -> dict:
-        _require(sample, ("sym_p2p",), type(self).__name__, "run DetectSymmetries or SetSymmetries")
-        G = sample["sym_p2p"].shape[0]
-        index = int(torch.randint(G, (1,), generator=self.generator))
-        return apply_symmetry(sample, index)
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}()"
+        rev = None if self.reverses is None else self.reverses.tolist()
+        return f"{type(self).__name__}(G={G}, V={V}, sha1={self._digest}, reverses={rev})"
 
 
 def change_basis(sample: dict, R: Tensor) -> dict:
     """Replace the eigenbasis by ``evecs @ R`` for a block-orthogonal ``R`` ([K, K], within bands).
 
-    Per-vertex fields do not move; quantities expressed in the basis follow: ``sym_fmap[h] ->
-    R.T @ sym_fmap[h] @ R`` (the pull-back in the new basis), and a coefficient vector ``a`` of a
-    function becomes ``R.T @ a``.
+    Per-vertex fields do not move; operators expressed in the basis follow: ``sym_fmap[h] ->
+    R.T @ sym_fmap[h] @ R`` (the pull-back in the new basis), ``orient_op[d] -> R.T @ orient_op[d] @ R``,
+    and a coefficient vector ``a`` of a function becomes ``R.T @ a``.
     """
     _require(sample, ("evecs",), "change_basis", "run ComputeSpectrum first")
     out = dict(sample)
     R = R.to(sample["evecs"])
     out["evecs"] = sample["evecs"] @ R
-    if "sym_fmap" in out:
-        out["sym_fmap"] = R.mT @ sample["sym_fmap"] @ R
+    for key in sample.keys() & {"sym_fmap", "orient_op"}:
+        out[key] = R.mT @ sample[key] @ R
     return out
 
 
@@ -444,3 +386,12 @@ class RandomBandRotation:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
+
+
+def __getattr__(name: str):
+    # apply_symmetry and RandomSymmetry moved to symtorch.data.symmetry (which imports this module)
+    if name in ("apply_symmetry", "RandomSymmetry"):
+        from . import symmetry
+
+        return getattr(symmetry, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

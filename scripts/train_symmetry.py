@@ -1,0 +1,289 @@
+"""Does symmetry make a shape-matching network better?  The field's protocol, four runs per setting.
+
+    python scripts/train_symmetry.py --dataset FAUST                      # all train shapes, 4 runs
+    python scripts/train_symmetry.py --dataset TOSCA_Isometric --regime quarter
+    python scripts/build_scape_r.py && python scripts/train_symmetry.py --dataset SCAPE_r
+
+Backbone: geomfum's DiffusionNet (4 blocks, spectral diffusion in the first ``--k-eig`` eigenpairs,
+gradient features) on WKS (default) or on xyz with a random rotation per shape and step
+(``--input xyz``); the differentiable functional-map layer with the resolvent Laplacian mask
+(:func:`symtorch.fmap_solve.regularized_fmap`, GeomFmaps / ULRSSM) in the first ``--k`` eigenpairs;
+supervised by the ground-truth functional map (GeomFmaps, Donati et al. 2020). One pair per step,
+Adam, the same seed and the same number of steps for every run.
+
+Data (remeshed independently per shape, as the field trains): FAUST and TOSCA_Isometric at 5k
+vertices (``../shared/data/bcicp_5k``; TOSCA pairs within a class), SCAPE remeshed to 5k by
+``scripts/build_scape_r.py`` (SCAPE_r layout). Shapes, not pairs, are split into train and held-out;
+``--regime quarter`` trains on a quarter of the train shapes. Symmetries are *detected* by symtorch on
+every shape (``DetectSymmetries``), not read from the ground truth.
+
+Runs (cumulative):
+
+- ``baseline``: supervised loss ``||C - C_gt||^2``;
+- ``augment``: + symmetry augmentation, ``RandomSymmetry(mode="mirror")``: a shape with a detected
+  reflection becomes its mirror image half of the time, its ground truth composed with the reflection
+  (still an orientation-preserving correspondence), so the network must use orientation;
+- ``losses``: + symmetry equivariance ``||C S_x - S_y C||^2``;
+- ``full``: + the orientation term ``||C O_x - O_y C||^2`` (Ren et al. 2018, WKS operators) in training
+  and ``resolve_symmetry`` on the predicted maps at test time.
+
+Evaluation (the field's protocol) on held-out pairs: the point map from the functional map by
+nearest neighbours in the spectral embedding, geodesic error per template point on the unit-area
+target, divided by sqrt(area) (= 1): mean error, share of maps closer to the symmetric ground truth
+than to the truth (flipped), error up to symmetry. Every run is also scored after
+``resolve_symmetry`` (a post-process any user can bolt on to any network's maps).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import re
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import torch
+
+from symtorch.backbone import ComputeGradientOperator, DiffusionNetFeatures
+from symtorch.data import (Compose, ComputeDescriptors, ComputeOrientationOperators, ComputeSpectrum,
+                           DetectSymmetries, MeshDataset, NormalizeArea, RandomSymmetry,
+                           corr_to_fmap)
+from symtorch.fmap_solve import regularized_fmap
+from symtorch.losses import fmap_loss, symmetry_equivariance_loss
+from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
+from symtorch.maps import fmap_to_p2p
+from symtorch.orientation import orientation_residual, resolve_symmetry
+from symtorch.paths import shared_path
+
+ROOT = Path(__file__).resolve().parent.parent
+RUNS = ("baseline", "augment", "losses", "full")
+log = logging.getLogger("train_symmetry")
+
+
+# ------------------------------------------------------------------------------------------- data
+def dataset_root(name: str, scape_r: Path) -> Path:
+    """The dataset's folder, in one of the layouts ``MeshDataset.from_layout`` reads."""
+    if name == "SCAPE_r":
+        if not (scape_r / "off").is_dir():
+            raise SystemExit(f"{scape_r}/off not found: build it with scripts/build_scape_r.py")
+        return scape_r
+    root = shared_path("bcicp_5k", name)
+    if root is None:
+        raise SystemExit(f"shared data not found: bcicp_5k/{name}")
+    return root
+
+
+def shape_class(name: str) -> str:
+    """TOSCA class of a shape name (``cat10`` -> ``cat``); one class for the other datasets."""
+    return re.sub(r"\d+$", "", name)
+
+
+def split_shapes(names: list[str], dataset: str, seed: int) -> tuple[list[int], list[int]]:
+    """(train, test) indices of shapes, the field's split where it has one."""
+    n = len(names)
+    if dataset == "SCAPE_r":  # the field: the first 51 poses train, the last 20 test
+        return list(range(n - 20)), list(range(n - 20, n))
+    if dataset == "FAUST":  # the field: the first 80 of 100 train; here the last 3 of 10 test
+        return list(range(n - 3)), list(range(n - 3, n))
+    g = torch.Generator().manual_seed(seed)
+    train, test = [], []
+    for cls in sorted({shape_class(s) for s in names}):
+        idx = [i for i, s in enumerate(names) if shape_class(s) == cls]
+        idx = [idx[j] for j in torch.randperm(len(idx), generator=g).tolist()]
+        k = max(1, round(0.25 * len(idx))) if len(idx) > 2 else 1
+        test += idx[:k]
+        train += idx[k:]
+    return sorted(train), sorted(test)
+
+
+def pairs_of(indices: list[int], names: list[str], within_class: bool) -> list[tuple[int, int]]:
+    return [(i, j) for i in indices for j in indices
+            if i != j and (not within_class or shape_class(names[i]) == shape_class(names[j]))]
+
+
+def pre_transform(k: int, n_wks: int) -> Compose:
+    """What is cached per shape: unit area, spectrum, WKS, detected symmetries, the WKS orientation
+    operators (Ren et al. 2018) and DiffusionNet's gradient operator."""
+    return Compose([NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors(n_hks=0, n_wks=n_wks),
+                    DetectSymmetries(), ComputeOrientationOperators(), ComputeGradientOperator()])
+
+
+# ------------------------------------------------------------------------------------------ model
+def random_rotation(generator: torch.Generator) -> torch.Tensor:
+    A = torch.randn(3, 3, generator=generator, dtype=torch.float64)
+    Q, R = torch.linalg.qr(A)
+    Q = Q * torch.sign(torch.diagonal(R))[None, :]
+    return Q if torch.det(Q) > 0 else -Q
+
+
+class Matcher(torch.nn.Module):
+    """DiffusionNet features -> spectral coefficients -> regularised functional map."""
+
+    def __init__(self, inp: str, n_wks: int, k: int, k_eig: int, width: int, out: int):
+        super().__init__()
+        self.inp, self.k = inp, k
+        self.features = DiffusionNetFeatures(n_wks if inp == "wks" else 3, out,
+                                             hidden_channels=width, k_eig=k_eig)
+
+    def coefs(self, s: dict, generator: torch.Generator | None = None) -> torch.Tensor:
+        if self.inp == "wks":
+            x = s["wks"].float()
+        else:
+            R = random_rotation(generator) if generator is not None else torch.eye(3, dtype=torch.float64)
+            x = (s["verts"].double() @ R.mT).float()
+        F = self.features(s, x)  # [V, D]
+        ev = s["evecs"][:, :self.k].float()
+        return ev.mT @ (s["mass"].float()[:, None] * F)  # [K, D]
+
+    def fmap(self, A_x, A_y, s_x, s_y) -> torch.Tensor:
+        return regularized_fmap(A_x, A_y, s_x["evals"][:self.k].float(), s_y["evals"][:self.k].float())
+
+
+def gt_fmap(x: dict, y: dict, k: int) -> torch.Tensor:
+    return corr_to_fmap(x["corr"], y["corr"], x["evecs"][:, :k].float(), y["evecs"][:, :k].float(),
+                        y["mass"].float())
+
+
+def sym_mats(s: dict, k: int) -> torch.Tensor:
+    return s["sym_fmap"][:, :k, :k].float()
+
+
+def orient_ops(s: dict, k: int) -> torch.Tensor:
+    return s["orient_op"][:, :k, :k].float()
+
+
+def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Matcher:
+    torch.manual_seed(args.seed)
+    g = torch.Generator().manual_seed(args.seed)
+    model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out)
+    opt = torch.optim.Adam(model.parameters(), lr=args.lr)
+    augment = RandomSymmetry(mode="mirror", generator=g) if run != "baseline" else None
+    t0, k = time.perf_counter(), args.k
+    for step in range(args.steps):
+        i, j = pairs[int(torch.randint(len(pairs), (1,), generator=g))]
+        x, y = data[i], data[j]
+        if augment is not None:
+            x, y = augment(x), augment(y)
+        C = model.fmap(model.coefs(x, g), model.coefs(y, g), x, y)
+        loss = fmap_loss(C, gt_fmap(x, y, k))
+        if run in ("losses", "full"):
+            loss = loss + args.w_equiv * symmetry_equivariance_loss(C, sym_mats(x, k), sym_mats(y, k),
+                                                                   match="best")
+        if run == "full":
+            # the relative residual (0 for an orientation-preserving map, 2 for a reversing one):
+            # scale-free, so its weight does not depend on the descriptors' magnitude
+            loss = loss + args.w_orient * orientation_residual(C, orient_ops(x, k), orient_ops(y, k))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if (step + 1) % max(1, args.steps // 5) == 0:
+            log.info(f"{run}: step {step + 1}/{args.steps} loss {float(loss):.4f} "
+                     f"[{time.perf_counter() - t0:.0f} s]")
+    return model
+
+
+# ------------------------------------------------------------------------------------- evaluation
+@torch.no_grad()
+def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], args, evaluator):
+    """Plain and resolved scores of the model's maps on the held-out pairs."""
+    model.eval()
+    k = args.k
+    coefs = {i: model.coefs(data[i]) for i in {p for pair in pairs for p in pair}}
+    plain, resolved = [], []
+    for i, j in pairs:
+        x, y = data[i], data[j]
+        C = model.fmap(coefs[i], coefs[j], x, y)
+        r = resolve_symmetry(C[None], sym_mats(y, k)[None], orient_ops(x, k)[None],
+                             orient_ops(y, k)[None])
+        for out, Cm in ((plain, C), (resolved, r.fmap[0])):
+            p2p = fmap_to_p2p(Cm.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
+            out.append(evaluator.score(p2p, x, y))
+    model.train()
+    return summarize_pairs(plain), summarize_pairs(resolved)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--dataset", choices=["FAUST", "TOSCA_Isometric", "SCAPE_r"], default="FAUST")
+    ap.add_argument("--regime", choices=["full", "quarter"], default="full")
+    ap.add_argument("--runs", nargs="+", choices=RUNS, default=list(RUNS))
+    ap.add_argument("--input", choices=["wks", "xyz"], default="wks")
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--k", type=int, default=30, help="functional map size")
+    ap.add_argument("--k-eig", type=int, default=64, help="eigenpairs for DiffusionNet's diffusion")
+    ap.add_argument("--k-spectrum", type=int, default=78, help="eigenpairs cached per shape")
+    ap.add_argument("--n-wks", type=int, default=64)
+    ap.add_argument("--width", type=int, default=64)
+    ap.add_argument("--out", type=int, default=64, help="feature size")
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--w-equiv", type=float, default=1.0)
+    ap.add_argument("--w-orient", type=float, default=0.1)
+    ap.add_argument("--n-points", type=int, default=500, help="template points scored per pair")
+    ap.add_argument("--max-pairs", type=int, default=100, help="held-out pairs scored (evenly spaced)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--scape-r", type=Path, default=Path("/work/data_derived/SCAPE_r"))
+    ap.add_argument("--cache", type=Path, default=ROOT / ".symtorch_cache" / "train_symmetry")
+    ap.add_argument("--json", type=Path, default=None, help="append the result rows to this file")
+    args = ap.parse_args()
+
+    logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
+    warnings.filterwarnings("ignore")
+    torch.set_num_threads(1)
+    root = dataset_root(args.dataset, args.scape_r)
+    t0 = time.perf_counter()
+    ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks),
+                                 processed_dir=args.cache / args.dataset)
+    data = [ds[i] for i in range(len(ds))]
+    names = [s["name"] for s in data]
+    log.info(f"{args.dataset}: {len(data)} shapes, precompute/load {time.perf_counter() - t0:.0f} s")
+    within = args.dataset == "TOSCA_Isometric"
+    train_idx, test_idx = split_shapes(names, args.dataset, args.seed)
+    if args.regime == "quarter":
+        g = torch.Generator().manual_seed(args.seed + 1)
+        keep = max(2, math.ceil(len(train_idx) / 4))
+        if within:  # keep every class represented
+            by_cls: dict[str, list[int]] = {}
+            for i in train_idx:
+                by_cls.setdefault(shape_class(names[i]), []).append(i)
+            train_idx = sorted(i for idx in by_cls.values()
+                               for i in [idx[j] for j in torch.randperm(len(idx), generator=g).tolist()]
+                               [:max(1, math.ceil(len(idx) / 4))])
+        else:
+            train_idx = sorted(train_idx[j] for j in torch.randperm(len(train_idx), generator=g)[:keep].tolist())
+    train_pairs = pairs_of(train_idx, names, within)
+    test_pairs = pairs_of(test_idx, names, within)
+    if len(test_pairs) > args.max_pairs:
+        step = len(test_pairs) / args.max_pairs
+        test_pairs = [test_pairs[int(i * step)] for i in range(args.max_pairs)]
+    log.info(f"{len(train_idx)} train shapes ({len(train_pairs)} pairs), {len(test_idx)} held-out "
+             f"({len(test_pairs)} pairs scored)")
+    evaluator = CorrespondenceEvaluator(n_points=args.n_points)
+    rows = []
+    for run in args.runs:
+        t1 = time.perf_counter()
+        model = train(run, data, train_pairs, args)
+        t_train = time.perf_counter() - t1
+        plain, resolved = evaluate(model, data, test_pairs, args, evaluator)
+        for post, res in (("", plain), ("+resolve", resolved)):
+            row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run + post,
+                       n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
+                       flipped=res.flipped_share, up_to_symmetry=res.mean_up_to_symmetry,
+                       error_sym=res.mean_sym, train_s=round(t_train, 1), steps=args.steps,
+                       seed=args.seed)
+            rows.append(row)
+            print(f"{args.dataset:15s} {args.regime:7s} {run + post:17s} error {res.mean:.4f}  "
+                  f"flipped {100 * res.flipped_share:5.1f}%  up to symmetry "
+                  f"{res.mean_up_to_symmetry:.4f}  [{len(train_idx)} train shapes, "
+                  f"{len(res.pairs)} pairs, train {t_train:.0f} s]",
+                  flush=True)
+        if args.json is not None:
+            with open(args.json, "a") as fh:
+                for row in rows[-2:]:
+                    fh.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()
