@@ -44,7 +44,7 @@ def main(argv=None) -> int:
         det = sum(res.timings.values()) - spec
         rows.append((spec, det, total))
         stages = " ".join(f"{k}={t:.3f}" for k, t in res.timings.items())
-        print(f"{name:>12s} V={len(v):>6d} group={res.group.get('name')!s:>4s} total {total:5.2f} s | "
+        print(f"{name:>12s} V={len(v):>6d} group={res.group.name!s:>4s} total {total:5.2f} s | "
               f"spectrum {spec:.2f} detection {det:.2f} ratio {det / max(spec, 1e-9):.2f} | {stages}",
               flush=True)
     med = [statistics.median(r[i] for r in rows) for i in range(3)]

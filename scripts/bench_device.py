@@ -100,7 +100,7 @@ def cases(candidates: list[int]):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = detect_symmetries(v, f, spectrum=spec, mode="group", k_refine=40, device=d)
-            assert res.group["name"] == "D5h", res.group["name"]
+            assert res.group.name == "D5h", res.group.name
         return run
     yield ("detect_symmetries group (device=)", f"star prism V={len(v)}, D5h", detect)
     Kl = 60

@@ -37,6 +37,7 @@ import torch
 from scipy.spatial import cKDTree
 
 import symtorch.detect.reflection as reflect
+from symtorch.detect import ReflectionConfig
 from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
 from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 from symtorch.geodesics import GeodesicSolver
@@ -106,8 +107,9 @@ def main(argv=None) -> int:
         recorded.clear()
         halfway.clear()
         # unreachable bars: nothing verifies, so the guided selection runs too; every candidate compared
-        res = reflect.detect_reflection(torch.as_tensor(v), torch.as_tensor(f), spec, max_vote=2.0, early_vote=2.0)
-        trials = res.info["trials"] + res.info.get("guided_trials", [])
+        res = reflect.detect_reflection(torch.as_tensor(v), torch.as_tensor(f), spec,
+                                        config=ReflectionConfig(max_vote=2.0, early_vote=2.0))
+        trials = res.diagnostics.reflection.trials + res.diagnostics.reflection.guided_trials
         solver = GeodesicSolver(v, f)
         vu = v * spec.scale
         samples = farthest_point_sampling(torch.as_tensor(vu), 1000).numpy()

@@ -1,4 +1,4 @@
-"""Whole-group detection (issue 4) on the shapes built in code, the paper's table and SHREC'07 Watertight.
+"""Whole-group detection on the shapes built in code, the paper's table and SHREC'07 Watertight.
 
     OMP_NUM_THREADS=1 nice -n 5 python scripts/evaluate_groups.py [--subdivisions 4] [--no-data]
 
@@ -62,7 +62,7 @@ def run(name, verts, faces, expected, truth=None, orbits=None, rigid=False):
         warnings.simplefilter("ignore")
         res = detect_symmetries(verts, faces, mode="group", k_refine=40)
     dt = time.perf_counter() - t0
-    found = "continuous" if res.continuous else res.group.get("name")
+    found = "continuous" if res.continuous else res.group.name
     solver = GeodesicSolver(verts, faces)
     rates = ""
     if truth is not None:
@@ -76,8 +76,9 @@ def run(name, verts, faces, expected, truth=None, orbits=None, rigid=False):
         r = np.array([float((dihedral_orbit_errors(solver, p, orbits) < eps).double().mean())
                       for p in res.p2ps])
         rates = f"orbit rate min {r.min():.2f} mean {r.mean():.2f}"
-    info = res.info
-    cand = f"{info.get('n_candidates_before', '-')}->{info.get('n_candidates', '-')}"
+    info = res.diagnostics.group
+    before, after = (info.n_candidates_before, info.n_candidates) if info is not None else (None, None)
+    cand = f"{'-' if before is None else before}->{'-' if after is None else after}"
     print(f"| {name:<22} | {expected:<10} | {found:<10} | {len(res.symmetries):>3} | {rates:<42} | "
           f"{cand:>16} | {dt:6.2f} |", flush=True)
     return res

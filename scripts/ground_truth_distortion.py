@@ -2,7 +2,7 @@
 
     python scripts/ground_truth_distortion.py --dataset SCAPE [--limit N] [--names mesh013,mesh033]
 
-The reflection path selects among candidate maps by geodesic distortion (``reflect.isometry_score``:
+The reflection path selects among candidate maps by geodesic distortion (``verification.isometry_score``:
 mean ``|d(g(x), g(y)) - d(x, y)|`` over sample pairs, unit area, in KLC units). That can only pick the
 ground truth where the ground truth is the more isometric map. Per mesh this prints, on the ground
 truth's own source points (at most ``--max-points``): the distortion of the ground-truth map, the
@@ -24,7 +24,7 @@ from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mes
 from symtorch._checks import face_areas
 from symtorch.eval import evenly_spaced, geodesic_errors, klc_rates
 from symtorch.geodesics import GeodesicSolver
-from symtorch.detect.reflection import isometry_score
+from symtorch.detect.verification import isometry_score
 
 
 def main(argv=None) -> int:
@@ -58,8 +58,8 @@ def main(argv=None) -> int:
         gt[torch.as_tensor(src)] = torch.as_tensor(img)
         samples = torch.as_tensor(src)
         base = unit.pairwise(samples)
-        gt_dist = isometry_score(unit, gt, samples, source_dist=base)[1]
-        our_dist = isometry_score(unit, p2p, samples, source_dist=base)[1]
+        gt_dist = isometry_score(unit, gt, samples, source_dist=base).distortion
+        our_dist = isometry_score(unit, p2p, samples, source_dist=base).distortion
         flag = "" if sym is not None else "no reflection"
         if rate <= 0.75:
             n_wrong += 1

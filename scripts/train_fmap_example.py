@@ -64,7 +64,7 @@ def template_symmetries(root: Path, name: str, cache: Path) -> Tensor:
 
     print(f"detecting the symmetries of {name} (once) ...", flush=True)
     mesh = read_mesh(root / f"{name}.off")
-    result = detect_symmetries(mesh.verts, mesh.faces, generator=torch.Generator().manual_seed(0))
+    result = detect_symmetries(mesh.verts, mesh.faces)
     if len(result.symmetries) < 2:
         raise SystemExit(f"no reflection found on {name}; cannot build the symmetric run")
     p2ps = result.p2ps[:2]

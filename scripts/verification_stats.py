@@ -44,8 +44,9 @@ def main() -> None:
             verts, faces = load_mesh(path)
             res = detect_symmetries(verts, faces, mode="reflection")
             if res.reflection is not None:  # the checks of the map reported (the guided one if it ran)
-                gaps.append(res.info.get("guided", res.info)["descriptor_gap"])
-            scores = res.info.get("candidate_scores", [])
+                d = res.diagnostics.reflection
+                gaps.append((d.guided or d.checks).descriptor_gap)
+            scores = res.diagnostics.reflection.candidate_scores
             thirds.append(scores[2] if len(scores) > 2 else np.inf)
             eig.append(smallest_relative_gap(res.spectrum.evals.numpy()))
         thirds = np.asarray(thirds)

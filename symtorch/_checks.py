@@ -4,6 +4,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+# A face is degenerate when its area is below this fraction of the squared bounding-box diagonal:
+# exact zeros miss collinear float64 triangles, whose cross product rounds to ~1e-16 relative.
+DEGENERATE_REL_AREA = 1e-12
+# Vertices whose spread across their main direction is below this fraction of their length lie on
+# a line up to float32 rounding (~6e-8 relative).
+_COLLINEAR_REL = 1e-7
+
 
 def to_numpy(x, dtype=None) -> np.ndarray:
     """Tensor or array-like -> numpy array (detached, on CPU)."""
@@ -68,16 +75,43 @@ def face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def check_mesh(verts, faces) -> tuple[np.ndarray, np.ndarray]:
     """Validate a triangle mesh; returns (verts [V,3] float64, faces [F,3] int64) numpy arrays.
 
+    Areas are measured on the vertices scaled to a unit bounding box, so that coordinates as small
+    as 1e-150 (whose areas underflow float64) are accepted: the spectrum rescales them exactly
+    (by a power of two) before it solves.
+
     Raises:
-        ValueError: wrong shapes, NaN/inf coordinates, indices out of range, zero total area.
+        ValueError: wrong shapes, NaN/inf coordinates, indices out of range, zero total area
+            (exactly, or up to rounding: every face degenerate, or the vertices on a line), an area
+            that overflows float64.
     """
     v = check_verts(verts)
     f = check_faces(faces, v.shape[0])
-    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: reported below
-        area = float(face_areas(v, f).sum())
+    referenced = np.zeros(v.shape[0], dtype=bool)
+    referenced[f.ravel()] = True
+    used = v[referenced]
+    lo, span = used.min(axis=0), float(np.max(np.ptp(used, axis=0)))
+    if not np.isfinite(span):
+        raise ValueError(f"mesh area overflows float64 (coordinates up to {np.abs(v).max():.3g}); "
+                         "rescale the mesh")
+    if span == 0.0:
+        raise ValueError(f"mesh has zero total area (its {used.shape[0]} vertices coincide)")
+    unit = (used - lo) / span  # [U, 3] in the unit box
+    index = (np.cumsum(referenced) - 1)[f]  # faces into the referenced vertices
+    areas = face_areas(unit, index)
+    if not areas.any():
+        raise ValueError(f"mesh has zero total area ({v.shape[0]} vertices, {f.shape[0]} faces)")
+    diag2 = float(np.sum(np.ptp(unit, axis=0) ** 2))
+    if areas.max() <= DEGENERATE_REL_AREA * diag2:
+        raise ValueError(f"mesh has zero area up to rounding: all {f.shape[0]} faces are degenerate "
+                         f"(largest {areas.max() * span ** 2:.3g} against a bounding-box diagonal of "
+                         f"{np.sqrt(diag2) * span:.3g}; collinear or coincident vertices?)")
+    sv = np.linalg.svd(unit - unit.mean(axis=0), compute_uv=False)
+    if sv[1] <= _COLLINEAR_REL * sv[0]:
+        raise ValueError(f"mesh has zero area up to rounding: its vertices lie on a line (spread "
+                         f"across it {sv[1] / sv[0]:.2g} of its length)")
+    with np.errstate(over="ignore", invalid="ignore"):
+        area = float(areas.sum()) * span * span
     if not np.isfinite(area):
         raise ValueError(f"mesh area overflows float64 (coordinates up to {np.abs(v).max():.3g}); "
                          "rescale the mesh")
-    if area <= 0.0:
-        raise ValueError(f"mesh has zero total area ({v.shape[0]} vertices, {f.shape[0]} faces)")
     return v, f

@@ -6,8 +6,9 @@ spectrum is one ``.npz`` file (no pickle) named by :func:`spectrum_key`: a SHA-2
 (shape, dtype and bytes of the validated float64 vertices and int64 faces) and of every parameter that
 changes the result (``k``, ``normalize_area``, mesh or point cloud, the solver defaults of
 :mod:`symtorch.spectrum`, the ``robust_laplacian`` version). The file also stores the full key and
-the symtorch version; a file whose stored key or version differs, or that cannot be read (truncated,
-corrupt, wrong shapes), is recomputed and overwritten, never trusted. Writes go through a temporary
+the symtorch version and a SHA-256 of its arrays; a file whose stored key or version differs, whose
+arrays do not match the checksum, or that cannot be read (truncated, corrupt, wrong shapes), is
+recomputed and overwritten, never trusted. Writes go through a temporary
 file in the cache folder and ``os.replace``, so a reader never sees a half-written file and
 concurrent writers of the same key leave one complete file.
 """
@@ -32,7 +33,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["cached_spectrum", "spectrum_key", "spectrum_key_dict", "default_spectrum_cache_dir"]
 
-_FORMAT = 1  # bump when the file layout changes
+_FORMAT = 2  # bump when the file layout changes (2: a checksum of the arrays)
 
 
 def default_spectrum_cache_dir() -> Path:
@@ -127,6 +128,9 @@ def _read(path: Path, key: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, fl
     if meta.get("key") != key:
         log.warning("spectrum cache %s holds another key; recomputing", path.name)
         return None
+    if meta.get("sha256") != _arrays_digest(evals, evecs, mass, scale):
+        log.warning("spectrum cache %s does not match its checksum (damaged); recomputing", path.name)
+        return None
     K = key["k"]
     ok = (evals.shape == (K,) and evecs.ndim == 2 and evecs.shape[1] == K
           and mass.shape == (evecs.shape[0],) and np.isfinite(scale)
@@ -137,17 +141,25 @@ def _read(path: Path, key: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, fl
     return evals, evecs, mass, scale
 
 
+def _arrays_digest(evals, evecs, mass, scale) -> str:
+    h = hashlib.sha256()
+    for a in (evals, evecs, mass, np.array(scale, dtype=np.float64)):
+        h.update(_digest(np.asarray(a, dtype=np.float64)).encode())
+    return h.hexdigest()
+
+
 def _write(path: Path, key: dict, spec: Spectrum) -> None:
     """Atomic write: a temporary file in the same folder, then ``os.replace``."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = dict(evals=spec.evals.detach().cpu().double().numpy(),
+                  evecs=spec.evecs.detach().cpu().double().numpy(),
+                  mass=spec.mass.detach().cpu().double().numpy(),
+                  scale=np.array(spec.scale, dtype=np.float64))
+    meta = {"version": _version(), "key": key, "sha256": _arrays_digest(*arrays.values())}
 
     def write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
-            np.savez(fh, meta=np.array(json.dumps({"version": _version(), "key": key})),
-                     evals=spec.evals.detach().cpu().double().numpy(),
-                     evecs=spec.evecs.detach().cpu().double().numpy(),
-                     mass=spec.mass.detach().cpu().double().numpy(),
-                     scale=np.array(spec.scale, dtype=np.float64))
+            np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
 
     atomic_write(path, write)
 
@@ -184,7 +196,7 @@ def cached_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = Tr
         evals, evecs, mass, scale = hit
         log.debug("spectrum cache hit %s", path.name)
         if faces is not None:
-            warn_if_disconnected(evals, stacklevel=2)
+            warn_if_disconnected(evals, stacklevel=2, faces=faces, n_verts=evecs.shape[0])
         return Spectrum(torch.as_tensor(evals, **out), torch.as_tensor(evecs, **out),
                         torch.as_tensor(mass, **out), scale)
     spec = laplacian_spectrum(verts, faces, k, normalize_area=normalize_area)  # float64, CPU

@@ -3,33 +3,37 @@
 Ground-truth symmetry maps index vertices, so a loader that merges or sorts vertices silently breaks
 them. `read_mesh` parses ASCII OFF and OBJ itself (trimesh splits OBJ vertices per material and
 cannot read OFF files mixing triangles and polygons) and hands every other format (PLY, STL, GLB, ...)
-to `trimesh.load(..., process=False, maintain_order=True)`. Bad input raises a one-line `ValueError`
-naming the file; valid but suspicious input (unreferenced or duplicated vertices, several components,
-degenerate faces, non-manifold edges) logs and emits one `MeshWarning` per problem.
+to `trimesh.load(..., process=False, maintain_order=True)`, after checking that a PLY or STL file
+holds what its header promises (:mod:`symtorch._file_checks`). Bad input, a cut file included,
+raises a one-line `ValueError` naming the file; valid but suspicious input (unreferenced or
+duplicated vertices, several components, degenerate faces, non-manifold edges) logs and emits one
+`MeshWarning` per problem. The one repair, faces flipped to agree with their neighbours' orientation
+(the detector tells reflections from rotations by it), is announced the same way.
 """
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import logging
 import os
 import re
 import secrets
+import stat
 import warnings
 from typing import NamedTuple
 
 import numpy as np
 
-from ._checks import check_faces, check_mesh, check_verts, face_areas
+from ._checks import DEGENERATE_REL_AREA, check_faces, check_mesh, check_verts, face_areas
+from ._file_checks import check_ply, check_stl, cut_last_line, cut_message
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["Mesh", "MeshWarning", "read_mesh", "write_mesh", "mesh_report"]
+__all__ = ["Mesh", "MeshWarning", "WriteError", "read_mesh", "write_mesh", "mesh_report", "atomic_write"]
 
 _WRITERS = (".off", ".obj", ".ply")
-# A face is degenerate when its area is below this fraction of the squared bounding-box diagonal:
-# exact zeros miss collinear float32 triangles, whose cross product rounds to ~1e-16 relative.
-_DEGENERATE_REL_AREA = 1e-12
+_DEGENERATE_REL_AREA = DEGENERATE_REL_AREA  # see symtorch._checks
 
 
 class Mesh(NamedTuple):
@@ -65,9 +69,16 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
     formats go through trimesh without processing. A file with vertices but no faces is a point cloud.
     Polygons (quads and larger) are triangulated fan-wise, ``(v0, vi, vi+1)``, with a warning; for PLY,
     trimesh triangulates them and may move triangles ahead of polygons (face order only, never vertex
-    order). STL stores no shared vertices, so an STL mesh reads as a triangle soup (duplicated-vertex
-    warning); merge it yourself if that is what you want. Scenes (GLB, multi-object files) are
-    concatenated in trimesh's geometry order, with the scene transforms applied.
+    order). STL stores each triangle's corners, not shared vertices: exactly equal corners are merged
+    into one vertex, in order of first appearance (STL has no vertex order to keep). Scenes (GLB,
+    multi-object files) are concatenated in trimesh's geometry order, with the scene transforms applied.
+
+    What a header promises is checked against what the file holds: OFF and PLY counts (fewer or more
+    records than announced), binary PLY and STL sizes, a text file whose last data line has no
+    newline (cut: its last number may be a prefix of the real one), a PLY cut inside its header.
+    Faces oriented against their neighbours (across manifold edges) are flipped to agree, the
+    orientation of the majority kept per connected piece, with a warning; a non-orientable piece is
+    left as it is and reported.
 
     Args:
         path: mesh file; the format follows the extension.
@@ -76,28 +87,26 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
         Mesh(verts [V, 3] float64, faces [F, 3] int64 or None, path).
 
     Raises:
-        FileNotFoundError: no file at ``path``.
-        ValueError: empty, binary or unparsable file, no vertices, NaN or inf coordinates, face
-            indices out of range, or zero total area. The message is one line starting with the path.
+        FileNotFoundError: no file at ``path`` (or a broken symbolic link).
+        ValueError: a symbolic link loop; an empty, binary, unparsable or cut file, counts that
+            disagree with the data, no vertices, NaN or inf coordinates, face indices out of range,
+            or zero total area (also up to rounding: collinear vertices). The message is one line
+            starting with the path.
 
     Warns:
-        MeshWarning: (also logged) polygons triangulated, unreferenced vertices, duplicated vertices
-            (identical coordinates), several connected components, degenerate faces, non-manifold edges.
+        MeshWarning: (also logged) polygons triangulated, faces flipped to a consistent orientation
+            (or a non-orientable piece), unreferenced vertices, duplicated vertices (identical
+            coordinates), several connected components, degenerate faces, non-manifold edges.
     """
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"{path}: no such file")
-    if not os.path.isfile(path):
-        raise ValueError(f"{path}: not a regular file")
-    if os.path.getsize(path) == 0:
-        raise ValueError(f"{path}: file is empty")
+    _check_input_file(path)
     ext = os.path.splitext(path)[1].lower()
     try:
         if ext in (".off", ".obj"):
             text = _read_text(path)
             verts, faces, polygons = (_parse_off if ext == ".off" else _parse_obj)(text)
         else:
-            verts, faces, polygons = _load_trimesh(path)
+            verts, faces, polygons = _load_trimesh(path, ext)
     except ValueError as e:
         raise ValueError(f"{path}: {_one_line(e)}") from None
     except Exception as e:  # a reader bug or odd input must not surface as a raw traceback
@@ -114,11 +123,33 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
     except ValueError as e:
         raise ValueError(f"{path}: {_one_line(e)}") from None
 
+    notes = [polygons] if polygons else []
+    if faces is not None:
+        faces, orientation = _orient(faces, len(verts))
+        notes += [orientation] if orientation else []
     report = _report(verts, faces)
-    for problem in ([polygons] if polygons else []) + _problems(report):
+    for problem in notes + _problems(report):
         _warn(f"{path}: {problem}")
     logger.debug("read %s: %d vertices, %d faces", path, len(verts), report["n_faces"])
     return Mesh(verts, faces, path)
+
+
+def _check_input_file(path: str) -> None:
+    """One-line errors for a path that is no readable, non-empty regular file."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise ValueError(f"{path}: symbolic link loop") from None
+        if e.errno == errno.ENOENT and os.path.islink(path):
+            raise FileNotFoundError(f"{path}: broken symbolic link (to {os.readlink(path)})") from None
+        if e.errno == errno.ENOENT:
+            raise FileNotFoundError(f"{path}: no such file") from None
+        raise ValueError(f"{path}: cannot open ({e.strerror or type(e).__name__})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{path}: not a regular file")
+    if st.st_size == 0:
+        raise ValueError(f"{path}: file is empty")
 
 
 def _one_line(e: BaseException) -> str:
@@ -171,9 +202,18 @@ def _parse_off(text: str) -> tuple[np.ndarray, np.ndarray | None, str | None]:
         raise ValueError(f"bad OFF count line {' '.join(counts)[:40]!r}, expected 'nV nF nE'") from None
     if n_verts < 0 or n_faces < 0:
         raise ValueError(f"negative OFF counts nV={n_verts} nF={n_faces}")
-    if len(body) < n_verts + n_faces:
-        raise ValueError(f"truncated: header promises {n_verts} vertices and {n_faces} faces but "
-                         f"only {len(body)} data lines follow")
+    held = len(body)
+    if held < n_verts:
+        raise ValueError(f"truncated: header promises {n_verts} vertices and {n_faces} faces, file "
+                         f"holds {held} vertices and no faces")
+    if held < n_verts + n_faces:
+        raise ValueError(f"truncated: header promises {n_faces} faces, file holds {held - n_verts}")
+    if held > n_verts + n_faces:
+        raise ValueError(f"header promises {n_verts} vertices and {n_faces} faces but "
+                         f"{held - n_verts - n_faces} more data lines follow them")
+    cut = cut_last_line(text)
+    if cut is not None:
+        raise ValueError(cut_message(cut))
 
     verts = _table(body[:n_verts], np.float64)  # [V, 3+]; colour / normal columns follow xyz
     if verts is None:  # ragged columns: go line by line
@@ -226,6 +266,9 @@ def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray | None, str | None]:
 
     Only ``v`` and ``f`` records matter; texture, normal, group, material and line records are skipped.
     """
+    cut = cut_last_line(text)
+    if cut is not None:
+        raise ValueError(cut_message(cut))
     verts, faces, n_polygons, n_tris = [], [], 0, 0
     text = text.replace("\\\r\n", " ").replace("\\\n", " ")  # line continuations
     for lineno, raw in enumerate(text.splitlines(), 1):
@@ -259,15 +302,25 @@ def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray | None, str | None]:
     return v, faces, _polygon_note(n_polygons, n_tris)
 
 
-def _load_trimesh(path: str) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+def _load_trimesh(path: str, ext: str) -> tuple[np.ndarray, np.ndarray | None, str | None]:
     import trimesh
 
+    source, ply = path, None
+    if ext in (".ply", ".stl"):  # check what the header promises before trimesh reads it
+        with open(path, "rb") as fh:
+            data = fh.read()
+        if ext == ".ply":
+            ply = check_ply(data)
+        else:
+            check_stl(data)
+        source = dict(file_obj=io.BytesIO(data), file_type=ext[1:])
     try:
         # no force="mesh": it would turn a point cloud into an empty mesh
-        loaded = trimesh.load(path, process=False, maintain_order=True)
+        kw = dict(process=False, maintain_order=True)
+        loaded = trimesh.load(**source, **kw) if isinstance(source, dict) else trimesh.load(path, **kw)
     except Exception as e:  # trimesh's messages are terse ("Not a ply file!"): say who failed
-        ext = os.path.splitext(path)[1] or "mesh"
-        raise ValueError(f"trimesh cannot read it as {ext} ({type(e).__name__}: {_one_line(e)})") from None
+        raise ValueError(f"trimesh cannot read it as {ext or 'mesh'} ({type(e).__name__}: "
+                         f"{_one_line(e)})") from None
     if isinstance(loaded, trimesh.Scene):
         geoms = loaded.dump()  # scene transforms applied
         if not geoms:
@@ -284,21 +337,76 @@ def _load_trimesh(path: str) -> tuple[np.ndarray, np.ndarray | None, str | None]
     faces = getattr(loaded, "faces", None)
     faces = None if faces is None or len(faces) == 0 else np.asarray(faces, dtype=np.int64)
     note = None
-    if faces is not None and path.lower().endswith(".ply"):
-        declared = _ply_declared_faces(path)
-        if declared is not None and len(faces) > declared:
-            # trimesh triangulated polygons without telling how many there were
-            note = (f"{declared} faces, some of them polygons (4+ vertices), triangulated fan-wise "
-                    f"into {len(faces)} triangles")
+    if faces is not None and ext == ".stl":
+        verts, faces = _merge_soup(verts, faces)
+    declared = next((count for name, count, _ in ply.elements if name == "face"), None) if ply else None
+    if faces is not None and declared is not None and len(faces) > declared:
+        # trimesh triangulated polygons without telling how many there were
+        note = (f"{declared} faces, some of them polygons (4+ vertices), triangulated fan-wise "
+                f"into {len(faces)} triangles")
     return verts, faces, note
 
 
-def _ply_declared_faces(path: str) -> int | None:
-    with open(path, "rb") as fh:
-        head = fh.read(65536)
-    head = head.split(b"end_header", 1)[0].decode("latin-1")
-    m = re.search(r"^\s*element\s+face\s+(\d+)", head, flags=re.MULTILINE)
-    return int(m.group(1)) if m else None
+def _merge_soup(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge exactly equal vertices of a triangle soup (STL), in order of first appearance."""
+    _, first, inverse = np.unique(verts + 0.0, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # unique rows by first appearance
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return verts[first[order]], rank[inverse.reshape(-1)][faces]
+
+
+def _orient(faces: np.ndarray, n_verts: int) -> tuple[np.ndarray, str | None]:
+    """Faces flipped so that neighbours agree on orientation, and a note saying what was done.
+
+    Two faces sharing a manifold edge agree when they traverse it in opposite directions. Per
+    connected piece the orientation flipping the fewest faces is kept; a non-orientable piece (a
+    Moebius strip) is left as it is and reported.
+    """
+    F = len(faces)
+    a = faces[:, [0, 1, 2]].reshape(-1)
+    b = faces[:, [1, 2, 0]].reshape(-1)
+    ok = a != b
+    directed = np.sort(a[ok] * n_verts + b[ok])
+    if not (directed[1:] == directed[:-1]).any():
+        return faces, None  # no directed edge twice: every manifold edge is consistent
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    fid = np.repeat(np.arange(F), 3)[ok]
+    lo, hi = np.minimum(a[ok], b[ok]), np.maximum(a[ok], b[ok])
+    order = np.argsort(lo * n_verts + hi, kind="stable")
+    key = (lo * n_verts + hi)[order]
+    # manifold edges: a key that occurs exactly twice
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    counts = np.diff(np.r_[starts, key.size])
+    pair = starts[counts == 2]
+    f1, f2 = fid[order][pair], fid[order][pair + 1]
+    forward = (a[ok] < b[ok])[order]
+    same = forward[pair] == forward[pair + 1]  # same direction: one of the two must flip
+    # double cover: node f (kept) and F + f (flipped); agreeing faces join kept-kept and
+    # flipped-flipped, disagreeing ones kept-flipped
+    r = np.r_[f1, f1 + F]
+    c = np.r_[np.where(same, f2 + F, f2), np.where(same, f2, f2 + F)]
+    graph = coo_matrix((np.ones(r.size), (r, c)), shape=(2 * F, 2 * F))
+    _, labels = connected_components(graph, directed=False)
+    keep, flip = labels[:F], labels[F:]
+    twisted = keep == flip  # a piece whose faces cannot all agree
+    kept_count = np.bincount(keep, minlength=labels.max() + 1)
+    # per piece, keep the assignment that leaves more faces as they are (ties: the smaller label)
+    better = (kept_count[keep] > kept_count[flip]) | ((kept_count[keep] == kept_count[flip])
+                                                      & (keep < flip))
+    flipped = ~better & ~twisted
+    notes = []
+    if flipped.any():
+        faces = faces.copy()
+        faces[flipped] = faces[flipped][:, [0, 2, 1]]
+        notes.append(f"{int(flipped.sum())} of {F} faces were oriented against their neighbours; "
+                     "flipped to agree (vertices and face order unchanged)")
+    if twisted.any():
+        notes.append(f"{int(twisted.sum())} faces lie on a non-orientable piece (a Moebius strip) "
+                     "and cannot be oriented consistently; left as they are")
+    return faces, "; ".join(notes) or None
 
 
 def _problems(rep: dict) -> list[str]:
@@ -379,30 +487,75 @@ def _ply_bytes(v: np.ndarray, f: np.ndarray | None) -> bytes:
     return ("\n".join(header) + "\nend_header\n").encode("ascii") + body
 
 
+class WriteError(OSError):
+    """A file that could not be written; the message names it and the cause, on one line."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
+_KINDS = ((stat.S_ISLNK, "symbolic link"), (stat.S_ISFIFO, "FIFO"), (stat.S_ISCHR, "character device"),
+          (stat.S_ISBLK, "block device"), (stat.S_ISSOCK, "socket"), (stat.S_ISDIR, "folder"))
+
+
+def _write_error(path: str, err: OSError) -> WriteError:
+    cause = err.strerror.lower() if getattr(err, "strerror", None) else _one_line(err)
+    return WriteError(getattr(err, "errno", None) or 0, f"cannot write {path}: {cause}")
+
+
 def atomic_write(path: str | os.PathLike, write) -> None:
     """Write a file so that no reader ever sees it half-written: the one way symtorch writes files.
 
     ``write(tmp)`` fills a temporary file beside ``path`` (``.<name>.<random>.tmp``, permissions from
     the umask like a plain ``open``); it is flushed to disk and moved into place with ``os.replace``.
     On any error the temporary file is removed and the error re-raised; ``path`` is untouched.
+    ``path`` must be a regular file or absent: a symbolic link, FIFO or device is never replaced.
 
     Args:
         path: the file to write (its folder must exist).
         write: callable taking the temporary file's path, e.g. ``lambda tmp: torch.save(x, tmp)``.
+
+    Raises:
+        ValueError: ``path`` exists and is not a regular file.
+        WriteError: (an ``OSError``) the file cannot be written, with the cause: ``cannot write
+            result.json: read-only file system``, ``... no space left on device``.
     """
     path = os.fspath(path)
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    except OSError as e:
+        raise _write_error(path, e) from None
+    if mode is not None and not stat.S_ISREG(mode):
+        kind = next((name for test, name in _KINDS if test(mode)), "special file")
+        raise ValueError(f"{path}: is a {kind}, not a regular file; refusing to replace it")
     folder = os.path.dirname(os.path.abspath(path))
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{secrets.token_hex(4)}.tmp")
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    except OSError as e:
+        raise _write_error(path, e) from None
     try:
         write(tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+    except BaseException as e:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(e, OSError) and not isinstance(e, WriteError):
+            raise _write_error(path, e) from None
+        if isinstance(e, RuntimeError) and _disk_full(folder):  # torch.save: "unexpected pos"
+            raise _write_error(path, OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))) from None
         raise
+
+
+def _disk_full(folder: str) -> bool:
+    try:
+        return os.statvfs(folder).f_bavail == 0
+    except OSError:
+        return False
 
 
 def _write_bytes(path: str, data: bytes) -> None:
@@ -455,8 +608,12 @@ def _report(v: np.ndarray, f: np.ndarray | None) -> dict:
         return rep
     from .sampling import count_components
 
-    areas = face_areas(v, f)
-    diag2 = float(np.sum(np.ptp(v, axis=0) ** 2))
+    span = float(np.max(np.ptp(v, axis=0)))
+    unit = v / span if 0 < span < np.inf else v  # degeneracy is relative: tiny meshes too
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        areas = face_areas(unit, f)
+        diag2 = float(np.sum(np.ptp(unit, axis=0) ** 2))
+        area = float(face_areas(v, f).sum()) if unit is not v else float(areas.sum())
     collapsed = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])
     degenerate = collapsed | (areas <= _DEGENERATE_REL_AREA * diag2)
 
@@ -477,6 +634,6 @@ def _report(v: np.ndarray, f: np.ndarray | None) -> dict:
     rep.update(n_faces=int(len(f)), n_edges=int(len(uniq)), n_components=n_comp,
                is_manifold=n_nonmanifold == 0, is_closed=closed, n_boundary_edges=n_boundary,
                n_nonmanifold_edges=n_nonmanifold, n_unreferenced=int((~referenced).sum()),
-               n_degenerate_faces=int(degenerate.sum()), area=float(areas.sum()),
+               n_degenerate_faces=int(degenerate.sum()), area=area,
                euler_characteristic=chi, genus=genus)
     return rep

@@ -174,10 +174,14 @@ def true_symmetries(name: str) -> list[np.ndarray]:
     raise ValueError(f"no finite symmetry list for shape {name!r}")
 
 
-def symmetry_maps(verts: np.ndarray, mats: list[np.ndarray]) -> np.ndarray:
-    """[G, V] vertex maps of Euclidean symmetries: the nearest vertex to each transformed vertex."""
+def symmetry_maps(verts: np.ndarray, rigid: list[np.ndarray]) -> np.ndarray:
+    """[G, V] vertex maps of Euclidean symmetries: the nearest vertex to each transformed vertex.
+
+    Args:
+        verts: [V, 3]; rigid: [3, 3] orthogonal matrices ``R``, acting as ``verts @ R.T``.
+    """
     tree = cKDTree(verts)
-    return np.stack([tree.query(verts @ R.T)[1] for R in mats]).astype(np.int64)
+    return np.stack([tree.query(verts @ R.T)[1] for R in rigid]).astype(np.int64)
 
 
 SHAPES = {"mirror_blob": mirror_blob, "star_prism": star_prism, "ngon_prism": ngon_prism,

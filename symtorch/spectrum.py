@@ -21,6 +21,7 @@ from torch import Tensor
 
 from ._checks import check_mesh, check_verts, to_numpy
 from .sparse_solve import SPDFactor
+from .threads import bounded_threads
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +83,7 @@ def laplacian_matrices(verts, faces=None, *, n_neighbors: int = 30,
     return sp.csc_matrix(W, dtype=np.float64), mass
 
 
+@bounded_threads
 def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float = -1e-3,
                       tol: float = 1e-8, retries: int = 3, check_missing: bool | None = None,
                       solver: str = "cholmod") -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +92,8 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     One sparse factorisation of ``W - shift * M`` (``shift < 0`` keeps it positive definite, since W
     is only semi-definite): CHOLMOD's Cholesky (``solver="cholmod"``, :class:`~symtorch.sparse_solve.SPDFactor`;
     SuperLU where cholespy is missing or refuses the matrix) or SuperLU (``"superlu"``). On failure
-    the shift is made ten times larger and the solve retried. Runs in float64 on CPU.
+    the shift is made ten times larger and the solve retried. Runs in float64 on CPU, inside
+    :func:`symtorch.threads.limit_threads` (BLAS threads: the free cores, or the number set).
 
     Exactly repeated eigenvalues (a mesh with exact symmetry) defeat single-vector Lanczos: its Krylov
     space holds one direction per eigenspace, so ARPACK can return 3 of a 5-fold eigenvalue and fill
@@ -214,6 +217,7 @@ def _missing_pairs(lu, mass: np.ndarray, sigma: float, evecs: np.ndarray, lam_ma
     return lam[keep], Z[:, keep] / sq[:, None]
 
 
+@bounded_threads
 def laplacian_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool = True,
                        dtype: torch.dtype = torch.float64,
                        device: torch.device | str | None = None) -> Spectrum:
@@ -224,34 +228,73 @@ def laplacian_spectrum(verts, faces=None, k: int = 30, *, normalize_area: bool =
         faces: [F, 3] triangles (numpy or torch), or None for a point cloud.
         k: number of eigenpairs, the constant one included.
         normalize_area: scale to unit total area first (recommended; ``scale`` records the factor).
-        dtype, device: of the returned tensors. The solve itself runs in float64 on CPU.
+        dtype, device: of the returned tensors. The solve itself runs in float64 on CPU, its
+            thread pools capped by :func:`symtorch.threads.limit_threads`.
 
     Returns:
         Spectrum(evals [k], evecs [V, k], mass [V], scale).
 
     Raises:
-        ValueError: bad shapes, NaN coordinates, indices out of range, zero area, k too large.
+        ValueError: bad shapes, NaN coordinates, indices out of range, zero area (also up to
+            rounding), k too large, coordinates far from 1 (below ~1e-18 or above ~1e18) with
+            ``normalize_area=False``.
     """
-    W, mass = laplacian_matrices(verts, faces)
+    if faces is None:
+        v, f = check_verts(verts), None
+    else:
+        v, f = check_mesh(verts, faces)
+    # Cotangent stiffness is scale invariant in 2D; the mass scales with area. Coordinates far from
+    # 1 (areas of 1e-150 coordinates underflow) are scaled by a power of two, which is exact.
+    c = _exact_rescale(v)
+    W, mass = laplacian_matrices(v * c if c != 1.0 else v, f)
     area = float(mass.sum())
     if not np.isfinite(area) or area <= 0:
         raise ValueError(f"shape has zero total area (mass sums to {area})")
-    scale = 1.0 / np.sqrt(area) if normalize_area else 1.0
-    # Cotangent stiffness is scale invariant in 2D; the mass scales with area.
-    mass = mass * scale ** 2
+    if normalize_area:
+        scale = c / np.sqrt(area)
+        mass = mass * (1.0 / np.sqrt(area)) ** 2
+    elif c != 1.0:  # eigenvalues would scale by 1/c^2 and the shifted factorisation break down
+        raise ValueError(f"coordinates too {'small' if c > 1 else 'large'} to represent areas "
+                         f"(max |x| = {np.abs(v).max():.3g}) with normalize_area=False; rescale "
+                         "the mesh or keep normalize_area=True")
+    else:
+        scale = 1.0
     evals, evecs = generalized_eigsh(W, mass, k)
-    if faces is not None:
-        warn_if_disconnected(evals, stacklevel=3)
+    if f is not None:
+        warn_if_disconnected(evals, stacklevel=3, faces=f, n_verts=v.shape[0])
     out = dict(dtype=dtype, device=device)
     return Spectrum(torch.as_tensor(evals, **out), torch.as_tensor(evecs, **out),
                     torch.as_tensor(mass, **out), float(scale))
 
 
-def warn_if_disconnected(evals: np.ndarray, stacklevel: int = 2) -> None:
-    """Warn when the second eigenvalue is ~0: a mesh of several connected components."""
+def warn_if_disconnected(evals: np.ndarray, stacklevel: int = 2, *, faces=None,
+                         n_verts: int | None = None) -> None:
+    """Warn when the shape has several connected components.
+
+    With ``faces``, the components are counted on the mesh itself; the spectrum alone (second
+    eigenvalue ~0 relative to the last) also fires on one component whose parts differ in size by
+    many orders of magnitude (one huge triangle on a small mesh), so it is only the fallback.
+    """
+    if faces is not None:
+        from .sampling import count_components
+
+        f = to_numpy(faces, np.int64)
+        n = count_components(f, int(n_verts if n_verts is not None else f.max() + 1))
+        if n > 1:
+            warnings.warn(f"the mesh has {n} connected components; symmetries are only meaningful "
+                          "per component", stacklevel=stacklevel + 1)
+        return
     if evals.shape[0] > 1 and evals[1] < 1e-6 * max(evals[-1], 1e-12):
         warnings.warn("second eigenvalue is ~0: the mesh has several connected components; "
                       "symmetries are only meaningful per component", stacklevel=stacklevel + 1)
+
+
+def _exact_rescale(v: np.ndarray) -> float:
+    """1, or the power of two bringing the extent of ``v`` near 1 when it is far from it."""
+    span = float(np.max(np.ptp(v, axis=0)))
+    if not 0 < span < np.inf or 2.0 ** -60 <= span <= 2.0 ** 60:
+        return 1.0
+    return float(2.0 ** -round(math.log2(span)))
 
 
 def eigen_bands(evals, rel_gap: float = 0.3, window: int = 4) -> list[range]:

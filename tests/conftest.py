@@ -1,13 +1,67 @@
-"""Shared test set-up: the tests folder on sys.path (for ``shapes``), the shared-data location."""
+"""Shared test set-up: the tests folder on sys.path (for ``shapes``, ``prisms``), the shared-data
+location, device fixtures, shared meshes, and the ``data`` marker.
+
+A test is marked ``data`` here when it asks for the ``shared_data`` fixture or reads the shared data
+through ``shared_path`` (itself or through a helper of its module): ``pytest -m "not data"`` runs
+what needs nothing but the repository.
+Tests that start processes carry ``@pytest.mark.multiprocess`` themselves.
+"""
+import inspect
+import os
 import sys
 from pathlib import Path
 
-import pytest
-import torch
+# One thread per test process, set before numpy and torch load their thread pools: the default run
+# uses two xdist workers on a two-core machine, and the detectors' many small tensors run several
+# times slower when intra-op threads contend (an explicit OMP_NUM_THREADS is kept).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+import torch  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).parent))
 
 from symtorch.paths import shared_data_dir  # noqa: E402
+
+torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
+
+
+_DATA_CALLS = ("shared_path(", "shared_data_dir(")
+
+
+def _data_helpers(module) -> set[str]:
+    """Names of the module's functions that read the shared data themselves."""
+    out = set()
+    for name, fn in vars(module).items():
+        if inspect.isfunction(fn) and fn.__module__ == module.__name__ and not name.startswith("test_"):
+            try:
+                if any(c in inspect.getsource(fn) for c in _DATA_CALLS):
+                    out.add(name)
+            except (OSError, TypeError):
+                pass
+    return out
+
+
+def _reads_shared_data(item, helpers: set[str]) -> bool:
+    if "shared_data" in getattr(item, "fixturenames", ()):
+        return True
+    try:
+        src = inspect.getsource(item.function)
+    except (AttributeError, OSError, TypeError):
+        return False
+    return any(c in src for c in _DATA_CALLS) or any(f"{h}(" in src for h in helpers)
+
+
+def pytest_collection_modifyitems(config, items):
+    helpers: dict[str, set[str]] = {}
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is None:
+            continue
+        if module.__name__ not in helpers:
+            helpers[module.__name__] = _data_helpers(module)
+        if _reads_shared_data(item, helpers[module.__name__]):
+            item.add_marker(pytest.mark.data)
 
 
 @pytest.fixture(scope="session")
@@ -35,3 +89,39 @@ def cuda_device():
     if not torch.cuda.is_available():
         pytest.skip("no CUDA device")
     return torch.device("cuda:0")
+
+
+@pytest.fixture(scope="session")
+def d5h():
+    """D5h on a pentagonal prism: 20 exact vertex permutations and their matrices (``tests/prisms.py``)."""
+    from prisms import PrismGroup
+
+    return PrismGroup(5)
+
+
+@pytest.fixture(scope="session")
+def d4h():
+    """D4h on a square prism (``tests/prisms.py``)."""
+    from prisms import PrismGroup
+
+    return PrismGroup(4)
+
+
+@pytest.fixture(scope="module")
+def mirror3():
+    """``mirror_blob(3)`` (642 vertices) as tensors, with its mirror permutation: (verts, faces, mirror)."""
+    from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
+
+    v, f = mirror_blob(3)
+    mirror = symmetry_maps(v, true_symmetries("mirror_blob"))[1]
+    return torch.as_tensor(v), torch.as_tensor(f), torch.as_tensor(mirror)
+
+
+@pytest.fixture(scope="module")
+def one_thread():
+    """One torch thread for a module of detections: the detector works on many small tensors, and
+    intra-op threads only contend on a shared two-core machine. Restored after the module."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)

@@ -1,4 +1,6 @@
-"""Shapes built in code with known symmetries, shared by the tests."""
+"""Shapes built in code with known symmetries, and a quiet detection, shared by the tests."""
+import warnings
+
 import torch
 
 from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
@@ -15,3 +17,15 @@ def mirror_mesh(subdivisions: int = 2, dtype=torch.float64):
     mirror = symmetry_maps(verts, true_symmetries("mirror_blob"))[1]
     return (torch.tensor(verts, dtype=dtype), torch.tensor(f, dtype=torch.long),
             torch.tensor(mirror, dtype=torch.long))
+
+
+SUB = 4  # 2562 vertices: the icosphere's triangulation is only approximately 5- or 6-fold symmetric
+
+
+def detect_quietly(verts, faces, mode: str = "group"):
+    """``detect_symmetries(mode=mode, k_refine=40)`` with the group path's closure notes silenced."""
+    from symtorch.detect import detect_symmetries
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return detect_symmetries(verts, faces, mode=mode, k_refine=40)

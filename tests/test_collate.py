@@ -64,6 +64,7 @@ def test_pad_collate_errors():
         [[True, False], [True, True]]
 
 
+@pytest.mark.multiprocess
 def test_dataloader_with_two_workers(tmp_path):
     root = tmp_path / "meshes"
     root.mkdir()

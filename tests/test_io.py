@@ -170,7 +170,7 @@ RAISES = [
     ("garbage.off", GARBAGE, r"binary data"),
     ("garbage.obj", GARBAGE, r"binary data"),
     ("garbage.ply", GARBAGE, r"cannot read it as \.ply"),
-    ("garbage.stl", GARBAGE, r"no geometry found|no vertices found"),
+    ("garbage.stl", GARBAGE, r"binary STL|header promises \d+ triangles"),
     ("garbage.xyz123", GARBAGE, r"cannot read it as \.xyz123"),
     ("text.off", "hello world\nnot a mesh\n", r"not an OFF file"),
     ("binary_header.off", "OFF BINARY\n", r"binary OFF is not supported"),
@@ -278,12 +278,18 @@ def test_warning_points_at_caller_and_is_logged(tmp_path, caplog):
     assert logged == [f"{path}: 1 vertices referenced by no face (kept; indices unchanged)"]
 
 
-def test_stl_reads_as_triangle_soup(tmp_path):
-    path = tmp_path / "ico.stl"
-    trimesh.creation.icosphere(subdivisions=0).export(path)
-    mesh, messages = read_warning(path, r"48 duplicated vertices")
-    assert mesh.verts.shape == (60, 3) and mesh.faces.shape == (20, 3)
-    assert any("20 connected components" in m for m in messages), messages
+@pytest.mark.parametrize("encoding", ["binary", "ascii"])
+def test_stl_vertices_are_merged_in_order_of_appearance(tmp_path, encoding):
+    """STL stores each triangle's corners: equal corners become one vertex, first appearance first."""
+    sphere = trimesh.creation.icosphere(subdivisions=0)
+    path = tmp_path / f"ico_{encoding}.stl"
+    path.write_bytes(trimesh.exchange.stl.export_stl(sphere) if encoding == "binary"
+                     else trimesh.exchange.stl.export_stl_ascii(sphere).encode())
+    mesh = read_quietly(path)  # one closed component, no duplicated vertices
+    assert mesh.verts.shape == (12, 3) and mesh.faces.shape == (20, 3)
+    soup = trimesh.load(path, process=False)  # a corner per triangle, as the file stores them
+    np.testing.assert_array_equal(mesh.verts[mesh.faces], soup.vertices[soup.faces])
+    assert mesh.faces[0].tolist() == [0, 1, 2]  # the first triangle's corners come first
 
 
 def test_scene_is_concatenated(tmp_path):
@@ -375,3 +381,220 @@ def test_report_rejects_bad_input():
         mesh_report(np.zeros((3, 3)), [[0, 1, 3]])
     with pytest.raises(ValueError, match=r"verts must be \[V, 3\]"):
         mesh_report(np.zeros((3, 2)), None)
+
+
+# ------------------------------------------- what the header promises against what the file holds
+# (issue 14: cut files were read with exit 0, a face pointing at vertex 300 instead of 3001)
+
+def _ico_file(tmp_path, ext: str, subdivisions: int = 2):
+    """An icosphere written by write_mesh (OFF/OBJ text, PLY binary): (path, bytes, V, F)."""
+    verts, faces = shuffled_icosphere(subdivisions)
+    path = tmp_path / f"ico{ext}"
+    write_mesh(path, verts, faces)
+    return path, path.read_bytes(), len(verts), len(faces)
+
+
+def _raises_one_line(path, pattern: str) -> str:
+    with pytest.raises(ValueError, match=pattern) as info:
+        read_mesh(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message, message
+    return message
+
+
+@pytest.mark.parametrize("ext", [".off", ".obj"])
+@pytest.mark.parametrize("cut", [1, 2, 3, 7])
+def test_text_file_cut_in_its_last_line_is_an_error(tmp_path, ext, cut):
+    """Cutting the last bytes leaves a complete-looking last face (``f 95 12 3`` of ``f 95 12 31``)."""
+    path, data, _, _ = _ico_file(tmp_path, ext)
+    path.write_bytes(data[:-cut])
+    _raises_one_line(path, r"last line .* has no newline at its end: the file looks cut")
+
+
+@pytest.mark.parametrize("ext", [".off", ".obj"])
+def test_text_file_cut_in_the_middle_is_an_error(tmp_path, ext):
+    path, data, _, _ = _ico_file(tmp_path, ext)
+    path.write_bytes(data[: len(data) // 2])
+    _raises_one_line(path, r"truncated: header promises|file looks cut|out of range")
+
+
+def test_off_face_count_must_match_the_faces_held(tmp_path):
+    path, data, V, F = _ico_file(tmp_path, ".off")
+    lines = data.decode().splitlines(keepends=True)
+    head = lines[1]
+    assert head == f"{V} {F} 0\n"
+    (tmp_path / "more.off").write_text("OFF\n" + f"{V} {F + 88} 0\n" + "".join(lines[2:]))
+    _raises_one_line(tmp_path / "more.off", rf"truncated: header promises {F + 88} faces, file holds {F}$")
+    (tmp_path / "fewer.off").write_text("OFF\n" + f"{V} {F - 20} 0\n" + "".join(lines[2:]))
+    _raises_one_line(tmp_path / "fewer.off", rf"promises {V} vertices and {F - 20} faces but 20 more "
+                                             "data lines follow them")
+    (tmp_path / "lines.off").write_text("OFF\n" + f"{V} {F} 0\n" + "".join(lines[2:2 + V // 2]))
+    _raises_one_line(tmp_path / "lines.off", rf"header promises {V} vertices and {F} faces, file "
+                                             rf"holds {V // 2} vertices and no faces")
+
+
+def _ascii_ply(verts, faces, n_faces=None) -> str:
+    header = ["ply", "format ascii 1.0", f"element vertex {len(verts)}", "property double x",
+              "property double y", "property double z",
+              f"element face {len(faces) if n_faces is None else n_faces}",
+              "property list uchar int vertex_indices", "end_header"]
+    body = [" ".join(repr(float(x)) for x in p) for p in verts]
+    body += [f"{len(f)} " + " ".join(str(int(i)) for i in f) for f in faces]
+    return "\n".join(header + body) + "\n"
+
+
+def test_ascii_ply_counts_and_cuts(tmp_path):
+    verts, faces = shuffled_icosphere(2)
+    F = len(faces)
+    good = tmp_path / "good.ply"
+    good.write_text(_ascii_ply(verts, faces))
+    np.testing.assert_array_equal(read_quietly(good).faces, faces)
+    text = good.read_text()
+    lines = text.splitlines(keepends=True)
+    kept = len(lines) - int(0.4 * F)  # 40 % of the faces cut away, at a line end
+    (tmp_path / "cut.ply").write_text("".join(lines[:kept]))
+    _raises_one_line(tmp_path / "cut.ply", rf"truncated: header promises {F} faces, file holds "
+                                           rf"{F - int(0.4 * F)}$")
+    (tmp_path / "more.ply").write_text(_ascii_ply(verts, faces, n_faces=F + 5))
+    _raises_one_line(tmp_path / "more.ply", rf"header promises {F + 5} faces, file holds {F}")
+    (tmp_path / "fewer.ply").write_text(_ascii_ply(verts, faces, n_faces=F - 3))
+    _raises_one_line(tmp_path / "fewer.ply", r"3 data lines after the .* records the header promises")
+    (tmp_path / "midline.ply").write_text(text[:-3])
+    _raises_one_line(tmp_path / "midline.ply", r"face \d+ has 3 numbers|file looks cut")
+    (tmp_path / "lastbyte.ply").write_text(text[:-1])
+    _raises_one_line(tmp_path / "lastbyte.ply", r"file looks cut")
+
+
+def test_binary_ply_counts_and_cuts(tmp_path):
+    path, data, V, F = _ico_file(tmp_path, ".ply")
+    record = 1 + 3 * 4  # uchar count + 3 int32
+    for n_cut, held in ((1, F - 1), (record * 100 + 5, F - 101)):
+        (tmp_path / "cut.ply").write_bytes(data[:-n_cut])
+        _raises_one_line(tmp_path / "cut.ply", rf"truncated: header promises {F} faces, file holds {held}$")
+    head_end = data.index(b"end_header\n") + len(b"end_header\n")
+    (tmp_path / "verts_cut.ply").write_bytes(data[:head_end + 24 * (V // 3)])
+    _raises_one_line(tmp_path / "verts_cut.ply", rf"header promises {V} vertices, file holds {V // 3}$")
+    (tmp_path / "more.ply").write_bytes(data.replace(f"element face {F}\n".encode(),
+                                                     f"element face {F + 9}\n".encode()))
+    _raises_one_line(tmp_path / "more.ply", rf"header promises {F + 9} faces, file holds {F}")
+    (tmp_path / "fewer.ply").write_bytes(data.replace(f"element face {F}\n".encode(),
+                                                      f"element face {F - 2}\n".encode()))
+    _raises_one_line(tmp_path / "fewer.ply", rf"{2 * record} bytes after the records the header promises")
+    (tmp_path / "header.ply").write_bytes(data[:head_end - 20])  # cut inside the header
+    _raises_one_line(tmp_path / "header.ply", r"PLY header is cut: no 'end_header' line")
+
+
+def test_binary_ply_with_mixed_polygons_is_walked_record_by_record(tmp_path):
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\n"
+              "property float y\nproperty float z\nelement face 2\n"
+              "property list uchar int vertex_indices\nend_header\n").encode()
+    verts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 2, 0]], "<f4").tobytes()
+    quad = bytes([4]) + np.array([0, 1, 2, 3], "<i4").tobytes()
+    tri = bytes([3]) + np.array([3, 2, 4], "<i4").tobytes()
+    from symtorch._file_checks import check_ply
+
+    elements = check_ply(header + verts + quad + tri).elements  # complete: accepted
+    assert [(name, count) for name, count, _ in elements] == [("vertex", 5), ("face", 2)]
+    (tmp_path / "cut.ply").write_bytes(header + verts + quad + tri[:-2])
+    _raises_one_line(tmp_path / "cut.ply", r"truncated: header promises 2 faces, file holds 1$")
+
+
+def test_stl_sizes_and_cuts(tmp_path):
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    F = len(sphere.faces)
+    binary = trimesh.exchange.stl.export_stl(sphere)
+    (tmp_path / "cut.stl").write_bytes(binary[:-30])
+    _raises_one_line(tmp_path / "cut.stl", rf"truncated: header promises {F} triangles, file holds {F - 1}")
+    (tmp_path / "long.stl").write_bytes(binary + b"\x01" * 50)
+    _raises_one_line(tmp_path / "long.stl", rf"binary STL header promises {F} triangles but 50 bytes follow")
+    (tmp_path / "header.stl").write_bytes(binary[:60])
+    _raises_one_line(tmp_path / "header.stl", r"binary STL cut inside its 84-byte header")
+    text = trimesh.exchange.stl.export_stl_ascii(sphere)
+    (tmp_path / "cut_ascii.stl").write_text(text[: len(text) * 2 // 3])
+    _raises_one_line(tmp_path / "cut_ascii.stl", r"ASCII STL is cut: \d+ facets begun")
+
+
+# ------------------------------------------------------------------------ orientation, degeneracy
+
+def test_inconsistent_orientation_is_repaired_with_one_warning(tmp_path):
+    from symtorch.shapes import mirror_blob
+
+    verts, faces = mirror_blob(2)
+    bad = faces.copy()
+    bad[::2] = bad[::2][:, ::-1]  # half of the faces reversed
+    write_mesh(tmp_path / "half.off", verts, bad)
+    mesh, messages = read_warning(tmp_path / "half.off",
+                                  rf"{len(faces) // 2} of {len(faces)} faces were oriented against "
+                                  r"their neighbours; flipped to agree")
+    assert len(messages) == 1, messages
+    # every face wound as in the consistent original, or every face reversed (a tie: either side)
+
+    def wound(f):  # each triangle rotated to start at its smallest index: the winding stays
+        return np.stack([np.roll(r, -int(np.argmin(r))) for r in f])
+
+    got = wound(mesh.faces)
+    assert (got == wound(faces)).all() or (got == wound(faces[:, ::-1])).all()
+
+
+def test_moebius_strip_is_reported_not_repaired(tmp_path):
+    n = 24
+    t = np.arange(n) * 2 * np.pi / n
+    verts = []
+    for a in t:  # a strip of width 0.4 around a unit circle, half a twist
+        for w in (-0.2, 0.2):
+            r = 1 + w * np.cos(a / 2)
+            verts.append([r * np.cos(a), r * np.sin(a), w * np.sin(a / 2)])
+    faces = []
+    for i in range(n):
+        a0, a1 = 2 * i, 2 * i + 1
+        b0, b1 = (2 * (i + 1), 2 * (i + 1) + 1) if i < n - 1 else (1, 0)  # the twist: ends swapped
+        faces += [[a0, b0, a1], [a1, b0, b1]]
+    write_mesh(tmp_path / "moebius.obj", np.array(verts), np.array(faces))
+    mesh, _ = read_warning(tmp_path / "moebius.obj", r"non-orientable piece .* left as they are")
+    np.testing.assert_array_equal(mesh.faces, faces)
+
+
+def test_collinear_vertices_are_refused_fast(tmp_path):
+    """Zero area up to rounding: a spectrum of it ran 30 s and gave C1."""
+    import time
+
+    from symtorch.shapes import mirror_blob
+
+    verts, faces = mirror_blob(3)
+    direction = np.array([0.3, -1.1, 0.7])
+    line = (verts @ [1.0, 0.5, 0.25])[:, None] * direction  # every vertex on one line, rounded
+    write_mesh(tmp_path / "line.off", line, faces)
+    t0 = time.perf_counter()
+    _raises_one_line(tmp_path / "line.off", r"mesh has zero area up to rounding")
+    assert time.perf_counter() - t0 < 5
+
+
+def test_tiny_coordinates_give_the_spectrum_of_the_unscaled_mesh(tmp_path):
+    from symtorch.shapes import mirror_blob
+    from symtorch.spectrum import laplacian_spectrum
+
+    verts, faces = mirror_blob(2)
+    write_mesh(tmp_path / "tiny.off", verts * 1e-150, faces)
+    mesh = read_quietly(tmp_path / "tiny.off")  # no "zero total area", no degenerate faces
+    assert mesh_report(mesh.verts, mesh.faces)["n_degenerate_faces"] == 0
+    tiny, ref = laplacian_spectrum(mesh.verts, mesh.faces, k=12), laplacian_spectrum(verts, faces, k=12)
+    torch.testing.assert_close(tiny.evals, ref.evals, rtol=1e-9, atol=1e-9)
+    assert tiny.scale * 1e-150 == pytest.approx(ref.scale, rel=1e-12)
+    with pytest.raises(ValueError, match=r"coordinates too small to represent areas \(max \|x\| = "):
+        laplacian_spectrum(mesh.verts, mesh.faces, k=12, normalize_area=False)
+
+
+def test_one_huge_triangle_is_not_several_components():
+    """The spectral test (second eigenvalue ~0) fired on one component of very different scales."""
+    from symtorch.shapes import icosphere
+    from symtorch.spectrum import laplacian_spectrum
+
+    v, f = icosphere(2)
+    a, b, c = f[0]
+    far = (v[a] + v[b] + v[c]) / 3 * 1e4  # a huge pyramid in place of face 0
+    verts = np.vstack([v, far])
+    faces = np.vstack([f[1:], [[a, b, len(v)], [b, c, len(v)], [c, a, len(v)]]])
+    assert mesh_report(verts, faces)["n_components"] == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        laplacian_spectrum(verts, faces, k=10)

@@ -81,3 +81,22 @@ def test_zoomout_rejects_a_final_size_inside_a_band():
     evecs = torch.eye(4, dtype=torch.float64)
     with pytest.raises(ValueError, match="cuts a band"):
         zoomout_symmetry(C0, evecs, torch.ones(4, dtype=torch.float64), [range(0, 1), range(1, 3), range(3, 4)], 2)
+
+
+def test_zoomout_symmetry_on_device(mirror3, cuda_device):
+    """The band-by-band upsampling on ``device`` gives the CPU's matrix."""
+    from symtorch.refine import zoomout_symmetry
+    from symtorch.spectrum import band_boundary, solved_bands
+
+    device = cuda_device  # on CPU the comparison would be with itself
+    v, f, mirror = mirror3
+    s = laplacian_spectrum(v, f, k=40)
+    bands = solved_bands(s.evals)
+    k0, kf = band_boundary(bands, 6), band_boundary(bands, 30)
+    C0 = p2p_to_fmap(mirror, s.evecs[:, :k0], s.mass)
+    samples = farthest_point_sampling(v, 300)
+    ref = zoomout_symmetry(C0, s.evecs, s.mass, bands, kf, samples=samples, involution=True)
+    got = zoomout_symmetry(C0.to(device), s.evecs.to(device), s.mass.to(device), bands, kf,
+                           samples=samples.to(device), involution=True)
+    assert got.device == torch.device(device) and got.shape == (kf, kf)
+    torch.testing.assert_close(got.cpu(), ref, atol=1e-8, rtol=0)

@@ -6,7 +6,7 @@ import pytest
 
 from symtorch import cli, shapes
 from symtorch.cli.show import (colour_function, element_labels, export_glb, render_figure, save_png,
-                           source_vertex, transfer)
+                               source_vertex, transfer, view_rotation)
 from shapes import mirror_mesh
 
 
@@ -23,6 +23,17 @@ def test_transfer_is_composition_and_source_is_not_symmetric():
     assert g[mirror[s]] == 0.0  # the source's image carries the source's value
 
 
+def test_views_turn_about_the_vertical_axis():
+    verts, _ = shapes.mirror_blob(2)
+    R0, R90, R180 = (view_rotation(verts, t) for t in (0, 90, 180))
+    for R in (R0, R90, R180):
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+    # a half turn shows the other side: the depth axis of the first view, reversed
+    np.testing.assert_allclose(R180.T @ R0 @ R180.T @ R0, np.eye(3), atol=1e-9)
+    assert not np.allclose(R90, R0)
+
+
 def test_element_labels():
     assert element_labels(["identity", "reflection", "rotation", "rotation", "rotoreflection"],
                           [1, 2, 4, 2, 4]) == ["e", "s1", "r1", "r2", "m1"]
@@ -34,10 +45,14 @@ def test_render_and_glb(tmp_path):
     p2ps = np.stack([np.arange(len(verts)), mirror])
     fig = render_figure(verts, faces, p2ps, ["identity", "reflection"], [1, 2], [1.0, 0.9],
                         np.array([[0, 1], [1, 0]]), title="blob", max_faces=200)  # coarsened
-    assert len(fig.axes) == 3
+    assert len(fig.axes) == 2 * 3 + 1  # each element from three sides, then the table
     save_png(fig, tmp_path / "fig.png")
     data = (tmp_path / "fig.png").read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) < 300_000
+    from PIL import Image
+
+    width, height = Image.open(tmp_path / "fig.png").size
+    assert width >= 1600 and height >= 1000, (width, height)  # large enough to judge a map
     export_glb(str(tmp_path / "c.glb"), verts, faces, p2ps, ["e", "s1"])
     import trimesh
 

@@ -17,6 +17,8 @@ def _cmd_precompute(args) -> int:
     if args.k_refine is not None and args.k < args.k_refine + 8:
         raise ValueError(f"--k must be at least --k-refine + 8 (the detector refines in the cached "
                          f"basis, whose last band may be cut): got --k {args.k}, --k-refine {args.k_refine}")
+    if args.dist_timeout <= 0:
+        raise ValueError(f"--dist-timeout must be > 0 minutes, got {args.dist_timeout}")
     s = precompute(args.src, args.out, k=args.k, detect=args.detect, k_refine=args.k_refine,
                    workers=args.workers,
                    dtype=_DTYPES[args.dtype], ground_truth=gt, seed=args.seed,
@@ -47,12 +49,13 @@ def register_cli(subparsers) -> None:
     p.add_argument("src", help="folder tree of meshes (.off, .obj, .ply, .stl)")
     p.add_argument("out", help="cache folder; OUT/<folder> is MeshDataset's processed_dir")
     p.add_argument("--k", type=int, default=64, help="eigenpairs per mesh (default 64)")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this one)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="worker processes, one thread each (default 1: this one)")
     p.add_argument("--detect", action=argparse.BooleanOptionalAction, default=True,
                    help="also detect the symmetries (default yes)")
     p.add_argument("--k-refine", type=int, default=None, metavar="K",
-                   help="the detector's final basis size (default 60; 100: lower dense error, slower); "
-                        "needs --k >= K + 8")
+                   help="the detector's final basis size (default: detect_symmetries' 100, capped by "
+                        "the --k eigenpairs cached, about --k minus 8); needs --k >= K + 8")
     p.add_argument("--dtype", choices=sorted(_DTYPES), default="float32")
     p.add_argument("--ground-truth", choices=["none", "template", "vts"], default="none",
                    help="ground-truth correspondences to store (see MeshDataset)")

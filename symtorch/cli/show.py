@@ -5,9 +5,11 @@ coloured rings) is shown as is, then transferred through each symmetry ``g``: pa
 vertex ``i`` by ``f(g(i)) = f[p2p_g[i]]`` (``f∘g``). For a true symmetry the rings keep their shape and
 move to the image of the source point. The last panel is the group table, ``table[a][b] = a∘b``.
 
-Rendering is off-screen with matplotlib (Agg), an orthographic view in the shape's principal frame,
-flat-shaded faces drawn back to front; meshes above ``max_faces`` are coarsened by vertex clustering
-for the picture only. ``--glb`` writes the same colourings as vertex-coloured meshes side by side, for
+Rendering is off-screen with matplotlib (Agg): orthographic views in the shape's principal frame,
+each element seen from several sides (turned 0°, 90° and 180° about the vertical axis; front and
+back only for groups of more than four elements), flat-shaded faces drawn back to front, about
+1600 px wide or more; meshes above ``max_faces`` are coarsened by vertex clustering for the picture
+only. ``--glb`` writes the same colourings as vertex-coloured meshes side by side, for
 any glTF viewer.
 
 Functions: :func:`source_vertex`, :func:`transfer`, :func:`render_figure`, :func:`export_glb`.
@@ -20,8 +22,8 @@ import time
 
 import numpy as np
 
-__all__ = ["source_vertex", "colour_function", "transfer", "element_labels", "render_figure",
-           "export_glb", "register_cli"]
+__all__ = ["source_vertex", "colour_function", "transfer", "element_labels", "view_rotation",
+           "render_figure", "save_png", "export_glb", "register_cli"]
 
 _N_RINGS = 7  # iso-distance rings drawn over the colour ramp
 
@@ -85,8 +87,8 @@ def element_labels(kinds: list[str], orders: list[int]) -> list[str]:
     return out
 
 
-def _frame(verts: np.ndarray) -> np.ndarray:
-    """[3, 3] view rotation in the shape's principal frame, for an orthographic 3/4 view.
+def _frame(verts: np.ndarray) -> tuple[np.ndarray, float]:
+    """The shape's principal frame as (base [3, 3]: screen x, screen y = up, depth; elevation in degrees).
 
     An elongated shape (a figure) stands on its longest axis, seen along its shortest one; "up" points
     along the + direction of the file's coordinate axis nearest to it (files are usually modelled with
@@ -100,17 +102,23 @@ def _frame(verts: np.ndarray) -> np.ndarray:
         up, toward, elevation = -tail(vt[2]), vt[1], 35
     else:
         up, toward, elevation = vt[0] if vt[0][np.argmax(np.abs(vt[0]))] > 0 else -vt[0], -tail(vt[2]), 20
-    base = np.stack([np.cross(up, toward), up, toward])  # screen x, screen y, depth: right-handed
+    return np.stack([np.cross(up, toward), up, toward]), elevation  # right-handed
 
-    def rot(axis, deg):
-        t = np.radians(deg)
-        ca, sa = np.cos(t), np.sin(t)
-        i, j = [(1, 2), (0, 2), (0, 1)][axis]
-        R = np.eye(3)
-        R[i, i], R[i, j], R[j, i], R[j, j] = ca, -sa, sa, ca
-        return R
 
-    return rot(0, elevation) @ rot(1, -30) @ base
+def _rot(axis: int, deg: float) -> np.ndarray:
+    t = np.radians(deg)
+    ca, sa = np.cos(t), np.sin(t)
+    i, j = [(1, 2), (0, 2), (0, 1)][axis]
+    R = np.eye(3)
+    R[i, i], R[i, j], R[j, i], R[j, j] = ca, -sa, sa, ca
+    return R
+
+
+def view_rotation(verts: np.ndarray, turn: float = 0.0) -> np.ndarray:
+    """[3, 3] rotation to screen coordinates: a 3/4 view in the principal frame, turned ``turn``
+    degrees about the vertical axis (0, 90, 180: the sides a figure is judged from)."""
+    base, elevation = _frame(verts)
+    return _rot(0, elevation) @ _rot(1, turn - 30) @ base
 
 
 def _coarsen(verts, faces, max_faces):
@@ -155,6 +163,7 @@ def _draw_shape(ax, verts, faces, values, R, cmap):
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
     ax.axis("off")
+    return p
 
 
 def _draw_table(ax, table: np.ndarray, labels: list[str]) -> None:
@@ -193,15 +202,24 @@ def _colour(verts, faces, p2ps, source, colour) -> tuple[np.ndarray, int]:
     return colour_function(verts, faces, source), source
 
 
+def _layout(n_elements: int, n_views: int) -> int:
+    """Elements per row: one with three views or more, else two (about 1600-2200 px wide)."""
+    return 1 if n_views >= 3 or n_elements == 1 else 2
+
+
 def render_figure(verts, faces, p2ps, kinds, orders, scores, table, *, title: str = "",
-                  max_faces: int = 30000, panel_inches: float = 2.6, dpi: int = 80,
-                  source: int | None = None, colour: np.ndarray | None = None):
-    """The figure: ``f``, then ``f∘g`` for each symmetry, then the group table.
+                  turns: tuple[float, ...] | None = None, max_faces: int = 30000,
+                  panel_inches: float = 4.5, dpi: int = 120, source: int | None = None,
+                  colour: np.ndarray | None = None):
+    """The figure: ``f``, then ``f∘g`` for each symmetry, each from several sides; then the group table.
 
     Args:
         verts: [V, 3]; faces: [F, 3]; p2ps: [G, V] vertex maps, identity first.
         kinds, orders, scores: per element (``SymmetryResult.symmetries``).
         table: [G, G] group table (``table[a, b] = a∘b``), or None.
+        turns: the views of each element, in degrees about the vertical axis (``view_rotation``);
+            default (0, 90, 180), or (0, 180) for more than four elements.
+        panel_inches, dpi: width of one view and resolution (defaults: 540 px a view).
         source: the vertex ``f`` is the distance from; default :func:`source_vertex`.
         colour: [V] ``f`` itself when already computed (:func:`colour_function`); the source
             marked is then its minimum unless ``source`` is given.
@@ -216,36 +234,48 @@ def render_figure(verts, faces, p2ps, kinds, orders, scores, table, *, title: st
 
     verts, faces, p2ps = np.asarray(verts, float), np.asarray(faces), np.asarray(p2ps)
     f, source = _colour(verts, faces, p2ps, source, colour)
-    R = _frame(verts)
+    G = len(p2ps)
+    turns = tuple(turns) if turns is not None else ((0.0, 90.0, 180.0) if G <= 4 else (0.0, 180.0))
+    rotations = [view_rotation(verts, t) for t in turns]
     dv, df, labels = verts, faces, None
     if len(faces) > max_faces:
         dv, df, labels = _coarsen(verts, faces, max_faces)
+    # panels as tall as the shape needs in its tallest view (a standing figure), within limits
+    aspect = max(float(np.ptp(verts @ R[1]) / max(np.ptp(verts @ R[0]), 1e-30)) for R in rotations)
+    panel_h = panel_inches * min(max(aspect, 0.6), 1.8)
+    per_row = _layout(G, len(turns))
+    cols = per_row * len(turns)
+    rows = -(-G // per_row)
+    table_h = min(panel_inches * 1.2, 1.2 + 0.35 * G) if table is not None else 0.0
+    height = panel_h * rows + table_h + 0.6
+    fig = Figure(figsize=(panel_inches * cols, height), dpi=dpi)
+    fig.suptitle(title, fontsize=14)
+    grid = fig.add_gridspec(rows + (table is not None), cols,
+                            height_ratios=[panel_h] * rows + ([table_h] if table is not None else []))
     cmap = matplotlib.colormaps["turbo"]
-    G = len(p2ps)
     names = element_labels(kinds, orders)
-    n_panels = G + (table is not None)
-    cols = min(n_panels, 3 if n_panels in (5, 6, 9) else 4)
-    rows = -(-n_panels // cols)
-    fig = Figure(figsize=(panel_inches * cols, panel_inches * rows + 0.35), dpi=dpi)
-    fig.suptitle(title, fontsize=10)
     for g in range(G):
-        ax = fig.add_subplot(rows, cols, g + 1)
         vals = transfer(f, p2ps[g])
         if labels is not None:  # average per cluster for the coarse picture
             n = labels.max() + 1
             vals = np.bincount(labels, weights=vals, minlength=n) / np.bincount(labels, minlength=n)
-        _draw_shape(ax, dv, df, vals, R, cmap)
         if g == 0:
-            src = verts[source] @ R.T
-            ax.plot([src[0]], [src[1]], "o", ms=5, mfc="white", mec="black")
-            ax.set_title("f (distance from ○)", fontsize=9)
+            heading = "f (distance from ○)"
         else:
             order = f" of order {orders[g]}" if kinds[g] != "reflection" else ""
-            ax.set_title(f"f∘{names[g]}: {kinds[g]}{order} ({scores[g]:.2f})", fontsize=9)
+            heading = f"f∘{names[g]}: {kinds[g]}{order} (score {scores[g]:.2f})"
+        for v, (turn, R) in enumerate(zip(turns, rotations)):
+            ax = fig.add_subplot(grid[g // per_row, (g % per_row) * len(turns) + v])
+            _draw_shape(ax, dv, df, vals, R, cmap)
+            if g == 0:
+                src = verts[source] @ R.T
+                ax.plot([src[0]], [src[1]], "o", ms=8, mfc="white", mec="black")
+            ax.set_title(f"{heading}, turned {turn:g}°" if v == 0 else f"turned {turn:g}°",
+                         fontsize=12 if v == 0 else 10, loc="left" if v == 0 else "center")
     if table is not None:
-        ax = fig.add_subplot(rows, cols, G + 1)
+        ax = fig.add_subplot(grid[rows, : min(cols, 2)])
         _draw_table(ax, np.asarray(table), names)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.5 / height))  # room for the title
     return fig
 
 
@@ -286,26 +316,19 @@ def export_glb(path: str, verts, faces, p2ps, names: list[str], source: int | No
 
 def _write_atomic(path: str, data: bytes) -> None:
     from ..io import _write_bytes
+    from .main import make_parent
 
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    make_parent(path)
     _write_bytes(path, data)
 
 
-def _group_table(res) -> np.ndarray | None:
-    table = (res.group or {}).get("table")
-    if table is not None:
-        return np.asarray(table)
-    if len(res.symmetries) < 1:
-        return None
-    from ..groups.algebra import cayley_table
-
-    return cayley_table(res.fmaps).table.cpu().numpy()
-
-
 def _cmd_show(args) -> int:
-    from .main import _progress, load_triangle_mesh, run_detector
+    from .main import _progress, check_basis_args, check_output_path, load_triangle_mesh, run_detector
 
     t0 = time.perf_counter()
+    check_basis_args(args)
+    for path in (args.out, args.glb):
+        check_output_path(path)
     verts, faces, label = load_triangle_mesh(args, "`show`", "; detecting")
     kw = {k: v for k, v in (("k", args.k), ("k_refine", args.k_refine)) if v is not None}
     res = run_detector(verts, faces, label, **kw)
@@ -313,8 +336,8 @@ def _cmd_show(args) -> int:
     kinds = [s.kind for s in res.symmetries]
     orders = [int(s.order) for s in res.symmetries]
     scores = [float(s.score) for s in res.symmetries]
-    table = _group_table(res)
-    name = (res.group or {}).get("name")
+    table = res.group.table.cpu().numpy()
+    name = res.group.name
     group = f"group {name}" if name else "group"
     _progress(f"{group} of order {len(kinds)}: {', '.join(kinds)} ({time.perf_counter() - t0:.1f}s)")
     shown = os.path.basename(label) if not label.startswith("demo:") else label
@@ -339,7 +362,7 @@ def _cmd_show(args) -> int:
 
 def register_cli(subparsers) -> None:
     """Add ``symtorch show MESH`` to the ``symtorch`` command line."""
-    from .main import add_shape_arguments
+    from .main import add_shape_arguments, add_thread_argument
 
     p = subparsers.add_parser(
         "show", help="picture of the detected symmetries and the group table (PNG, GLB)",
@@ -348,9 +371,12 @@ def register_cli(subparsers) -> None:
     add_shape_arguments(p)
     p.add_argument("--out", help="PNG to write (default <mesh name>_symmetries.png unless --glb)")
     p.add_argument("--glb", help="also write the coloured meshes to this .glb (any 3D viewer)")
-    p.add_argument("--k", type=int, default=None, help="coarse basis size of the detector")
-    p.add_argument("--k-refine", type=int, default=None, help="refined basis size of the detector")
-    p.add_argument("--dpi", type=int, default=80, help="resolution of the PNG (default 80)")
+    p.add_argument("--k", type=int, default=None, help="coarse basis size of the detector (default 6)")
+    p.add_argument("--k-refine", type=int, default=None,
+                   help="refined basis size of the detector (default 100)")
+    p.add_argument("--dpi", type=int, default=120,
+                   help="resolution of the PNG (default 120: about 540 px a view, 1600 px or more wide)")
     p.add_argument("--max-faces", type=int, default=30000,
                    help="coarsen larger meshes for the picture (default 30000)")
+    add_thread_argument(p)
     p.set_defaults(func=_cmd_show)

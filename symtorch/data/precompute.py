@@ -15,29 +15,46 @@ Properties:
   ``meta.json`` records a mesh only after its ``.pt`` exists (rewritten after every mesh, or, for
   folders so large that one rewrite takes over 0.2 s, a little less often). Killed at
   any moment (even ``kill -9``), a new run redoes only the meshes not yet recorded.
+- **verified**: ``meta.json`` holds, per mesh, its file's stamp and SHA-256 and the size and SHA-256
+  of its ``.pt`` (which carries the key and the mesh hash too). A mesh counts as done only when all
+  of them verify: a truncated, emptied, damaged or copied-in ``.pt``, or a mesh edited behind a
+  restored modification time, is processed again (with a warning for a damaged ``.pt``).
 - **bad meshes** are skipped: one JSON line ``{"file", "error", "reason"}`` per mesh in
   ``OUT/failures.jsonl``; the file lists exactly the meshes still failing after the latest run.
-- **deterministic**: torch uses one thread per process and the detector a seeded generator, so a
-  resumed, parallel or distributed run writes the same samples as one uninterrupted run.
-- **workers**: ``--workers N`` processes (spawn start method), one mesh per task. A worker that dies
-  (out of memory, a crash in native code) fails only its mesh.
+- **deterministic**: every pool has one thread in every process (torch, BLAS: see
+  :mod:`symtorch.threads`) and the detector a seeded generator, so a resumed, parallel or
+  distributed run writes the same bytes as one uninterrupted run.
+- **workers**: ``--workers N`` processes (spawn start method), one mesh per task. When a worker
+  dies (out of memory, a crash in native code, ``kill -9``), the meshes it had in flight are
+  retried one at a time; a mesh that kills its worker again is listed as failed, with how the
+  worker ended. Ctrl-C stops the workers and ends the run with one line (exit status 130).
+- **one run per folder**: a run holds ``OUT/.run.lock`` (an ``fcntl`` lock, which the kernel drops
+  when its process dies: a killed run's lock is taken over); a second run on the same ``OUT``
+  refuses with a message naming the holder's pid and host, and never touches the first one's
+  temporary files.
 - **several machines**: under ``torchrun`` (``RANK``, ``WORLD_SIZE`` in the environment) rank r takes
-  the meshes ``r, r + W, r + 2W, ...`` of the sorted list and writes into the shared ``OUT``
-  (``meta.json`` updates take an ``fcntl`` lock on ``OUT/.lock``). At the end the ranks join a gloo
-  process group, only to wait for one another and to print one summary.
+  the meshes ``r, r + W, r + 2W, ...`` of the sorted list and writes into the shared ``OUT``; the
+  ranks of one job share the run lock (``meta.json`` updates take an ``fcntl`` lock on
+  ``OUT/.lock``). At the end the ranks join a gloo process group, only to wait for one another and
+  to print one summary, for at most ``--dist-timeout`` minutes; a rank whose agent dies (its parent
+  process changes) leaves at once.
 
 Layout of ``OUT``: the ``.pt`` files and ``meta.json`` per folder, ``precompute.json`` (the
-settings), ``failures.jsonl`` and ``.lock``.
+settings), ``failures.jsonl``, ``.lock`` and ``.run.lock``.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
 import datetime
+import errno
 import json
 import logging
 import os
 import resource
+import secrets
+import signal
+import socket
 import sys
 import threading
 import time
@@ -50,20 +67,26 @@ from pathlib import Path
 
 import torch
 
-from ..io import _one_line, atomic_write
-from .dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key,
-                           cache_is_current, file_stamp, process_file, read_meta, write_meta)
+from ..io import WriteError, _one_line, atomic_write
+from ..threads import limit_threads
+from .dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key, cache_problem,
+                      process_entry, read_meta, write_meta)
 from .transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSymmetries,
                               NormalizeArea)
 
 log = logging.getLogger(__name__)
 
 __all__ = ["default_pre_transform", "find_meshes", "precompute", "open_dataset", "done_names",
-           "Summary", "register_cli"]
+           "Summary", "FolderInUse", "register_cli"]
 
 FAILURES = "failures.jsonl"
 SETTINGS = "precompute.json"
-LOCK = ".lock"
+LOCK = ".lock"          # held for moments: meta.json and failures.jsonl updates, the run lock's check
+RUN_LOCK = ".run.lock"  # held for a whole run (shared by the ranks of one torchrun job)
+
+
+class FolderInUse(RuntimeError):
+    """Another ``symtorch precompute`` run is writing into the output folder."""
 _DTYPES = {"float32": torch.float32, "float64": torch.float64}
 _FLUSH_SHARE = 0.05  # at most this share of the time goes to rewriting meta.json
 
@@ -141,6 +164,10 @@ _WORKER: dict = {}
 
 
 def _init_worker(pre_transform, dtype, ground_truth, log_level, parent_pid) -> None:
+    # Ctrl-C reaches the whole process group: the parent stops the workers, which must not each
+    # print a KeyboardInterrupt traceback (they start with it blocked: _QuietSpawnProcess)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # a pending one is dropped
     torch.set_num_threads(1)
     _WORKER.update(pre_transform=pre_transform, dtype=dtype, ground_truth=ground_truth)
     logging.basicConfig(level=log_level, stream=sys.stderr,
@@ -164,11 +191,13 @@ def _run_item(raw: str, out: str) -> dict:
     if not io_log.isEnabledFor(logging.DEBUG):
         io_log.setLevel(logging.ERROR)
     try:
-        res["stamp"] = file_stamp(Path(raw))  # before reading: a file changed meanwhile is redone
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, limit_threads(1):
             warnings.simplefilter("always")
-            process_file(raw, out, _WORKER["pre_transform"], _WORKER["dtype"], _WORKER["ground_truth"])
+            _, res["entry"] = process_entry(raw, out, _WORKER["pre_transform"], _WORKER["dtype"],
+                                            _WORKER["ground_truth"])
         res.update(ok=True, warnings=sorted({_one_line(w.message) for w in caught}))
+    except WriteError as e:  # the output folder, not the mesh: the run stops (read-only, full)
+        res.update(ok=False, fatal=True, error="WriteError", reason=str(e))
     except Exception as e:  # noqa: BLE001 -- any failure of one mesh is reported, not raised
         log.debug("%s failed", raw, exc_info=True)
         msg = _one_line(e)
@@ -208,7 +237,12 @@ def _locked(path: Path):
     except ImportError:  # not POSIX: one process at a time is the user's business
         yield
         return
-    with open(path, "a+") as fh:
+    try:
+        fh = open(path, "a+")
+    except OSError as e:
+        raise WriteError(e.errno or 0, f"cannot write {path}: "
+                                       f"{(e.strerror or type(e).__name__).lower()}") from None
+    with fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
         try:
             yield
@@ -282,8 +316,8 @@ class _Recorder:
         self.pending: dict[str, dict[str, list]] = {}
         self.last_flush, self.flush_cost = time.perf_counter(), 0.0
 
-    def success(self, item: _Item, stamp: list) -> None:
-        self.pending.setdefault(item.folder, {})[item.name] = stamp
+    def success(self, item: _Item, entry: dict) -> None:
+        self.pending.setdefault(item.folder, {})[item.name] = entry
         # after every mesh while meta.json is cheap to rewrite (< 0.2 s); for huge folders, often
         # enough that the rewrites take at most _FLUSH_SHARE of the time (a kill loses that little)
         waited = time.perf_counter() - self.last_flush
@@ -293,10 +327,14 @@ class _Recorder:
     def failure(self, item: _Item, error: str, reason: str) -> None:
         line = json.dumps({"file": item.rel, "error": error, "reason": reason, "rank": self.rank,
                            "time": datetime.datetime.now().isoformat(timespec="seconds")})
-        with _locked(self.out / LOCK), open(self.out / FAILURES, "a") as fh:
-            fh.write(line + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with _locked(self.out / LOCK), open(self.out / FAILURES, "a") as fh:
+                fh.write(line + "\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as e:
+            raise WriteError(e.errno or 0, f"cannot write {self.out / FAILURES}: "
+                                           f"{(e.strerror or type(e).__name__).lower()}") from None
 
     def flush(self) -> None:
         t0 = time.perf_counter()
@@ -314,11 +352,15 @@ class _Recorder:
         self.flush_cost = self.last_flush - t0
 
 
-def _is_done(item: _Item, meta: dict | None, key: dict) -> bool:
+def _is_done(item: _Item, meta: dict | None, key: dict, warn: bool = False) -> bool:
+    """MeshDataset's rule, each cache file's checksum included; a file that does not verify warns."""
     try:
-        return cache_is_current(meta, key, item.name, item.raw, item.out)  # MeshDataset's rule
+        problem = cache_problem(meta, key, item.name, item.raw, item.out)
     except OSError:  # the mesh vanished: processing it will say so
         return False
+    if warn and problem not in (None, "not cached", "mesh changed"):
+        log.warning("%s: %s; processing it again", item.out, problem)
+    return problem is None
 
 
 def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, detect: bool = True,
@@ -343,12 +385,14 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
         Summary of this rank (under torchrun, rank 0's ``failures`` lists every rank's).
 
     Raises:
-        FileNotFoundError: ``src`` is not a folder or holds no mesh.
+        FileNotFoundError: ``src`` does not exist or holds no mesh.
+        NotADirectoryError: ``src`` is a file (or a symbolic link loop), not a folder.
+        FolderInUse: another run is writing into ``out`` (the message names its pid).
+        WriteError: ``out`` cannot be written (read-only, full), naming the file and the cause.
         ValueError: bad arguments.
     """
     src, out = Path(src), Path(out)
-    if not src.is_dir():
-        raise FileNotFoundError(f"{src}: no such folder")
+    _check_src(src)
     if workers < 0:
         raise ValueError(f"workers must be >= 0, got {workers}")
     if ground_truth not in (None, "template", "vts"):
@@ -360,7 +404,16 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
     files = find_meshes(src, exclude=out)
     if not files:
         raise FileNotFoundError(f"{src}: no {'/'.join(MESH_SUFFIXES)} files in this folder tree")
-    out.mkdir(parents=True, exist_ok=True)
+    _make_folder(out)
+    if world > 1:
+        _watch_agent(rank)
+    with _run_lock(out, _run_id(world)):
+        return _precompute_locked(src, out, files, k, detect, k_refine, workers, dtype, ground_truth,
+                                  seed, pre_transform, progress, dist_timeout_min, rank, world, t0)
+
+
+def _precompute_locked(src, out, files, k, detect, k_refine, workers, dtype, ground_truth, seed,
+                       pre_transform, progress, dist_timeout_min, rank, world, t0) -> Summary:
     key = cache_key(pre_transform, dtype, ground_truth)
     if rank == 0:
         settings = {"src": str(src.resolve()), "k": k, "detect": detect, "seed": seed,
@@ -370,7 +423,7 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
                         default_pre_transform(k, detect, seed, k_refine)), "key": key}
         atomic_write(out / SETTINGS, lambda tmp: Path(tmp).write_text(json.dumps(settings, indent=1)))
     if world == 1:
-        _remove_temporaries(out)
+        _remove_temporaries(out)  # this run holds the folder alone: left by a killed run
 
     items, taken, collisions = [], {}, []
     for raw in files:
@@ -388,7 +441,7 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
     todo, metas = [], {}
     for item in mine:
         if item.folder not in metas:  # once per folder
-            (out / item.folder).mkdir(parents=True, exist_ok=True)
+            _make_folder(out / item.folder)
             metas[item.folder] = read_meta(out / item.folder)
             meta = metas[item.folder]
             if meta is not None and meta.get("key") != key:
@@ -401,7 +454,7 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
             rec.failure(item, "NameCollision", reason)
             summary.failed += 1
             summary.failures.append((item.rel, reason))
-        elif _is_done(item, metas[item.folder], key):
+        elif _is_done(item, metas[item.folder], key, warn=True):
             summary.skipped += 1
         else:
             todo.append(item)
@@ -413,10 +466,12 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
               f"{len(todo)} to do, {max(workers, 1)} process(es)", file=sys.stderr, flush=True)
 
     def record(item: _Item, res: dict) -> None:
+        if res.get("fatal"):
+            raise WriteError(0, res["reason"])
         summary.peak_rss_mb = max(summary.peak_rss_mb, res.get("rss_mb", 0.0))
         if res["ok"]:
             summary.done += 1
-            rec.success(item, res["stamp"])
+            rec.success(item, res["entry"])
             for w in res.get("warnings", []):
                 log.info("%s", w)
         else:
@@ -443,22 +498,134 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
     return summary
 
 
+def _check_src(src: Path) -> None:
+    """One-line errors for a ``src`` that is no folder."""
+    if src.is_dir():
+        return
+    try:
+        os.stat(src)
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise NotADirectoryError(f"{src}: symbolic link loop") from None
+        raise FileNotFoundError(f"{src}: no such folder") from None
+    raise NotADirectoryError(f"{src}: is a file, not a folder (precompute takes the folder tree "
+                             "that holds the meshes)")
+
+
+def _make_folder(path: Path) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise WriteError(e.errno or 0, f"cannot create folder {path}: "
+                                       f"{(e.strerror or type(e).__name__).lower()}") from None
+
+
+def _run_id(world: int) -> str:
+    """Names this run in the run lock: the ranks of one torchrun job share it."""
+    if world > 1:
+        rdzv = os.environ.get("TORCHELASTIC_RUN_ID") or "none"
+        return (f"torchrun:{rdzv}:{os.environ.get('MASTER_ADDR')}:{os.environ.get('MASTER_PORT')}"
+                f":{world}")
+    return f"{socket.gethostname()}:{os.getpid()}:{secrets.token_hex(4)}"
+
+
+@contextlib.contextmanager
+def _run_lock(out: Path, run_id: str):
+    """Hold ``out/.run.lock`` for the run: a second run (another ``run_id``) is refused.
+
+    An ``fcntl`` lock, shared by the ranks of one run: the kernel drops it when its process dies, so
+    the lock of a killed run is taken over (its file still names the dead holder). The check runs
+    under ``out/.lock``, so two runs starting together cannot both win.
+
+    Raises:
+        FolderInUse: another live run holds the lock (the message names its pid and host).
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: one run at a time is the user's business
+        yield
+        return
+    path = out / RUN_LOCK
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise WriteError(e.errno or 0, f"cannot write {path}: "
+                                       f"{(e.strerror or type(e).__name__).lower()}") from None
+    try:
+        with _locked(out / LOCK):
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                free = True
+            except BlockingIOError:
+                free = False
+            except OSError as e:  # a file system without locks
+                log.warning("cannot lock %s (%s); make sure no other run writes into %s", path,
+                            e.strerror, out)
+                free = None
+            holder = _read_holder(fd)
+            if free:
+                if holder:
+                    log.info("%s: taking over the lock of pid %s on %s (no longer running)", out,
+                             holder.get("pid"), holder.get("host"))
+                info = {"run": run_id, "pid": os.getpid(), "host": socket.gethostname(),
+                        "started": datetime.datetime.now().isoformat(timespec="seconds")}
+                try:
+                    os.ftruncate(fd, 0)
+                    os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+                except OSError as e:
+                    raise WriteError(e.errno or 0, f"cannot write {path}: "
+                                                   f"{(e.strerror or type(e).__name__).lower()}") from None
+                fcntl.flock(fd, fcntl.LOCK_SH)  # the other ranks of this run join it
+            elif free is False:
+                if holder.get("run") != run_id:
+                    raise FolderInUse(
+                        f"{out}: in use by another symtorch precompute (pid {holder.get('pid')} on "
+                        f"{holder.get('host')}, since {holder.get('started')}); wait for it to "
+                        "finish, or choose another output folder")
+                fcntl.flock(fd, fcntl.LOCK_SH)  # a rank of the run that holds it
+        yield
+    finally:
+        os.close(fd)  # drops the lock
+
+
+def _read_holder(fd: int) -> dict:
+    try:
+        info = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+        return info if isinstance(info, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def _watch_agent(rank: int) -> None:
+    """Leave when the parent (torchrun's agent) dies: its orphaned ranks would otherwise wait at the
+    final barrier until the distributed timeout."""
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        print(f"symtorch: error: rank {rank}: the torchrun agent (pid {parent}) is gone; leaving",
+              file=sys.stderr, flush=True)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="symtorch-agent-watchdog", daemon=True).start()
+
+
 def _run_here(todo, pre_transform, dtype, ground_truth, record) -> None:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as in the workers: same floating-point sums, same cache files
+    # one thread in every pool, as in the workers: the same floating-point sums, the same files
     _WORKER.update(pre_transform=pre_transform, dtype=dtype, ground_truth=ground_truth)
     try:
-        for item in todo:
-            record(item, _run_item(str(item.raw), str(item.out)))
+        with limit_threads(1):
+            for item in todo:
+                record(item, _run_item(str(item.raw), str(item.out)))
     finally:
-        torch.set_num_threads(threads)
         _WORKER.clear()
 
 
 @contextlib.contextmanager
 def _single_threaded_env():
-    """Spawned workers inherit the environment: one BLAS / OpenMP thread each."""
-    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    """Spawned workers inherit the environment: one BLAS / OpenMP thread each from the start."""
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "SYMTORCH_NUM_THREADS")
     old = {n: os.environ.get(n) for n in names}
     os.environ.update({n: "1" for n in names})
     try:
@@ -471,43 +638,134 @@ def _single_threaded_env():
                 os.environ[n] = v
 
 
-def _run_pool(todo, workers, pre_transform, dtype, ground_truth, record) -> None:
-    """Run ``todo`` on ``workers`` spawned processes, at most one mesh in flight per worker. When a
-    worker dies, the meshes in flight are retried one at a time; the one that kills again fails."""
+def _quiet_process_class():
     import multiprocessing as mp
 
-    ctx = mp.get_context("spawn")
+    class QuietSpawnProcess(mp.get_context("spawn").Process):
+        """A spawned process started with SIGINT blocked (the signal mask survives the exec; the
+        worker ignores SIGINT and unblocks it once running). Ctrl-C reaches the whole process group,
+        and a worker still importing torch would print a KeyboardInterrupt traceback; the parent
+        stops its workers itself. Blocked, not ignored, in the parent too: a Ctrl-C during the start
+        is delivered after it, not lost (as multiprocessing starts its resource tracker)."""
+
+        def start(self):
+            old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                return super().start()
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    QuietSpawnProcess.__qualname__ = QuietSpawnProcess.__name__ = "_QuietSpawnProcess"
+    return QuietSpawnProcess
+
+
+_QuietSpawnProcess = _quiet_process_class()  # module level: spawn pickles the process object
+
+
+class _Spawn:
+    """The spawn context, keeping the worker processes it starts: their exit codes name a death."""
+
+    def __init__(self):
+        import multiprocessing as mp
+
+        self._ctx = mp.get_context("spawn")
+        self.processes: list = []
+
+    def __getattr__(self, name):
+        return getattr(self._ctx, name)
+
+    def Process(self, *args, **kwargs):  # noqa: N802 -- multiprocessing's name
+        proc = _QuietSpawnProcess(*args, **kwargs)
+        self.processes.append(proc)
+        return proc
+
+    def stop(self) -> None:
+        """Terminate the workers still alive (SIGTERM: no traceback) and reap them."""
+        started = [proc for proc in self.processes if proc.pid is not None]
+        for proc in started:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in started:
+            proc.join(timeout=10)
+
+    def deaths(self) -> str:
+        """How the workers that ended abnormally ended, e.g. ``killed by SIGKILL``."""
+        out = []
+        for proc in self.processes:
+            if proc.pid is None:
+                continue
+            proc.join(timeout=5)
+            code = proc.exitcode
+            if code is not None and code < 0:
+                with contextlib.suppress(ValueError):
+                    out.append(f"killed by {signal.Signals(-code).name}")
+                    continue
+            if code:
+                out.append(f"exit status {code}")
+        out = sorted(set(out))
+        if len(out) > 1 and "killed by SIGTERM" in out:  # the pool ends the others itself
+            out.remove("killed by SIGTERM")
+        return ", ".join(out) or "ended"
+
+
+def _run_pool(todo, workers, pre_transform, dtype, ground_truth, record) -> None:
+    """Run ``todo`` on ``workers`` spawned processes, at most one mesh in flight per worker.
+
+    When a worker dies, the meshes in flight (every mesh whose result did not come back) are retried
+    one at a time in a fresh worker each; one that kills its worker again is listed as failed, with
+    the way the worker ended (``killed by SIGKILL``: out of memory, or killed from outside). On
+    Ctrl-C (the workers ignore it) or any error the workers are terminated.
+    """
     init = (pre_transform, dtype, ground_truth, logging.getLogger().level, os.getpid())
-    queue, suspects = list(reversed(todo)), []
+    queue = list(reversed(todo))
     with _single_threaded_env():
         while queue:
+            suspects = []
+            ctx = _Spawn()
             with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
                                      initargs=init) as pool:
-                running = {}
+                running: dict = {}
                 try:
                     while queue or running:
                         while queue and len(running) < workers:
-                            item = queue.pop()
-                            running[pool.submit(_run_item, str(item.raw), str(item.out))] = item
+                            fut = pool.submit(_run_item, str(queue[-1].raw), str(queue[-1].out))
+                            running[fut] = queue.pop()  # popped once submitted: never lost
                         finished, _ = wait(running, return_when=FIRST_COMPLETED)
                         for fut in finished:
-                            record(running.pop(fut), fut.result())
+                            res = fut.result()  # BrokenProcessPool: the item stays in running
+                            record(running.pop(fut), res)
                 except BrokenProcessPool:
-                    suspects = list(running.values())
+                    for fut, item in running.items():
+                        if fut.done() and not fut.cancelled() and fut.exception() is None:
+                            record(item, fut.result())  # came back before the pool broke
+                        else:
+                            suspects.append(item)
+                    log.warning("a worker process died (%s); retrying %d mesh(es) one at a time",
+                                ctx.deaths(), len(suspects))
                 except BaseException:
                     pool.shutdown(wait=False, cancel_futures=True)
+                    with contextlib.suppress(Exception):
+                        ctx.stop()
                     raise
             for item in suspects:  # alone in a fresh pool each, so a second death names the culprit
-                with ProcessPoolExecutor(1, mp_context=ctx, initializer=_init_worker,
-                                         initargs=init) as alone:
-                    try:
-                        res = alone.submit(_run_item, str(item.raw), str(item.out)).result()
-                    except BrokenProcessPool:
-                        res = {"ok": False, "error": "WorkerDied",
-                               "reason": f"{item.raw}: the worker process died (out of memory or "
-                                         "a crash in native code)"}
-                record(item, res)
-            suspects = []
+                record(item, _run_alone(item, init))
+
+
+def _run_alone(item: _Item, init: tuple) -> dict:
+    ctx = _Spawn()
+    with ProcessPoolExecutor(1, mp_context=ctx, initializer=_init_worker, initargs=init) as alone:
+        try:
+            return alone.submit(_run_item, str(item.raw), str(item.out)).result()
+        except BrokenProcessPool:
+            return {"ok": False, "error": "WorkerDied",
+                    "reason": f"{item.raw}: the worker process died on this mesh twice "
+                              f"({ctx.deaths()}: out of memory, a crash in native code, or killed "
+                              "from outside)"}
+        except BaseException:
+            alone.shutdown(wait=False, cancel_futures=True)
+            with contextlib.suppress(Exception):
+                ctx.stop()
+            raise
 
 
 def _compact_failures(out: Path, items: list[_Item], key: dict) -> None:
@@ -521,10 +779,14 @@ def _compact_failures(out: Path, items: list[_Item], key: dict) -> None:
             with contextlib.suppress(ValueError, KeyError, TypeError):
                 latest[json.loads(line)["file"]] = line
         by_rel = {it.rel: it for it in items}
+        first = {}  # the file each sample name belongs to (a later one of the same stem collides)
+        for it in items:
+            first.setdefault((it.folder, it.name), it.rel)
         metas = {f: read_meta(out / f) for f in {it.folder for it in items}}
         # a mesh no longer in SRC, or done by now, is not failing any more
         keep = [line for rel, line in latest.items()
-                if rel in by_rel and not _is_done(by_rel[rel], metas[by_rel[rel].folder], key)]
+                if rel in by_rel and (first[by_rel[rel].folder, by_rel[rel].name] != rel
+                                      or not _is_done(by_rel[rel], metas[by_rel[rel].folder], key))]
         if keep:
             atomic_write(path, lambda tmp: Path(tmp).write_text("".join(s + "\n" for s in keep)))
         else:

@@ -1,23 +1,51 @@
-"""Symmetry detection: reflections (ALGORITHM §4) and whole groups (§5), as block-orthogonal matrices."""
+"""The automatic policy of symmetry detection: which path to run, and which result to keep.
+
+Two paths find symmetries (``docs/method.md``): the reflection path (ALGORITHM §4,
+:mod:`.reflection`) looks for one intrinsic mirror; the group path (§5, :mod:`.group_path`) for a
+whole finite group, or a continuous symmetry. :func:`detect_symmetries` chooses:
+
+1. **spectrum**: the Laplace-Beltrami eigenpairs, unless given.
+2. **group first** where the low spectrum has repeated eigenvalues at more than one scale
+   (``has_multiplicities``: rotations of order >= 3 make 2-dimensional eigenspaces all the way
+   up); its result is kept when it is a continuous symmetry or a group of order > 2.
+3. **reflection** otherwise (and after a group path that found at most a mirror).
+4. **second opinion**: where the spectrum is simple but the reflection path verified no
+   reflection (a lone half turn, a box whose heat-kernel extrema are too few to pair), or found at
+   least three equally consistent involutions of its extrema (a C2v or D2h shape: all its
+   irreducible representations are 1-D, so its spectrum is simple), the group path runs too,
+   asked for a group larger than the reflection path's.
+5. **keep** the larger verified group (the reflection path's on a tie), with every element's
+   matrix expressed in the ``k_refine`` basis whichever path found it.
+"""
 from __future__ import annotations
 
 import logging
 import time
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import torch
 
 from .._checks import check_mesh
 from ..geodesics import GeodesicSolver
-from .result import SymmetryResult
+from ..maps import p2p_to_fmap
+from ..procrustes import block_project
 from ..sampling import count_components
-from ..spectrum import Spectrum, laplacian_spectrum
+from ..spectrum import Spectrum, band_boundary, laplacian_spectrum, solved_bands
+from .config import DetectConfig
+from .result import Diagnostics, SymmetryResult
 
 log = logging.getLogger(__name__)
 
+__all__ = ["detect_symmetries", "in_basis"]
+
+MODES = ("auto", "reflection", "group")
+
 
 class _Timer:
+    """Seconds per named stage: ``lap(name)`` charges the time since the last lap to ``name``."""
+
     def __init__(self):
         self.t = time.perf_counter()
         self.timings: dict[str, float] = {}
@@ -26,6 +54,88 @@ class _Timer:
         now = time.perf_counter()
         self.timings[name] = self.timings.get(name, 0.0) + now - self.t
         self.t = now
+
+
+def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectrum | None = None,
+                      device: torch.device | str | None = None, config: DetectConfig | None = None,
+                      **knobs) -> SymmetryResult:
+    """Find the global intrinsic symmetries of a triangle mesh (see the module docstring).
+
+    Args:
+        shape: [V, 3] vertices (numpy or torch), or a ``symtorch.io.Mesh``.
+        faces: [F, 3] triangles.
+        mode: ``'reflection'`` (ALGORITHM §4), ``'group'`` (§5) or ``'auto'`` (the policy above).
+        spectrum: a precomputed ``laplacian_spectrum(verts, faces, k)``. Without one,
+            ``max(k_refine + 10, 60)`` eigenpairs are solved: the bands up to ``k_refine`` complete,
+            and at least 60 for the group path's descriptors.
+        device: where the group path's batched candidate stages run (block Procrustes over all
+            candidate tuples, batched ICP, mean shift); default the spectrum's device. The mesh
+            geometry (heat-method geodesics, Dijkstra, k-d trees) and the refinement run on the CPU
+            in float64 whatever the device.
+        config: the knobs (``DetectConfig``; default the benchmarked settings).
+        **knobs: shortcuts for ``config`` fields: ``k``, ``k_refine``, ``group_tol``, ... (any field
+            of ``DetectConfig``), and the reflection-path keywords of earlier versions
+            (``n_samples``, ``min_score``, ``n_extrema``, ``nms_radius``, ``block_refine``,
+            ``n_refine``); ``detect_symmetries(mesh, k_refine=40)`` is
+            ``detect_symmetries(mesh, config=DetectConfig(k_refine=40))``.
+
+    Returns:
+        SymmetryResult, identity first; ``fmaps`` is ``[G, K, K]`` with ``K`` the band end nearest
+        ``k_refine``, whichever path found the elements. Its tensors are on the device of the
+        ``spectrum`` passed in (CPU without one), in its dtype.
+
+    Raises:
+        ValueError: for a point cloud, several connected components, or bad mesh input.
+        TypeError: an unknown keyword.
+    """
+    cfg = (DetectConfig() if config is None else config).with_keywords(**knobs)
+    timer = _Timer()
+    verts, faces = _shape_inputs(shape, faces)
+    if mode not in MODES:
+        raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
+    if spectrum is None:
+        spectrum = laplacian_spectrum(verts, faces, k=max(cfg.k_refine + 10, 60))
+    out_device = spectrum.evecs.device
+    batch_device = torch.device(device) if device is not None else out_device
+    spectrum = spectrum.to("cpu")  # the geometry is solved on the host; the result goes back
+    timer.lap("spectrum")
+    # one factorisation for both paths (the timer counts it in the first path's first stage)
+    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)
+    result = _run_policy(verts, faces, spectrum, mode, cfg, solver, timer, batch_device)
+    result = in_basis(result, spectrum, band_boundary(solved_bands(spectrum.evals), cfg.k_refine))
+    return replace(result, timings=dict(timer.timings)).to(out_device)
+
+
+def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, solver: GeodesicSolver,
+                timer: _Timer, batch_device: torch.device) -> SymmetryResult:
+    """Steps 2-5 of the module docstring: the kept result, with every path's diagnostics."""
+    from .group_path import detect_group, has_multiplicities  # imported here: tests patch them
+    from .reflection import detect_reflection
+
+    k_group, k_refine_group = cfg.group_basis
+
+    def group_path(min_order: int = 1) -> SymmetryResult:
+        return detect_group(verts, faces, spectrum, k=k_group, k_refine=k_refine_group, config=cfg.group,
+                            device=batch_device, solver=solver, min_order=min_order, timer=timer)
+
+    grouped = None
+    if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, k_group)):
+        grouped = group_path()
+        if mode == "group" or grouped.continuous or grouped.group.order > 2:
+            return grouped
+    reflected = detect_reflection(verts, faces, spectrum, k=cfg.k, k_refine=cfg.k_refine,
+                                  config=cfg.reflection, solver=solver, timer=timer)
+    if mode == "auto" and grouped is None and (len(reflected.symmetries) == 1
+                                               or _several_involutions(reflected, cfg.group_tol)):
+        with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
+            warnings.simplefilter("ignore")
+            # only a group larger than the reflection path's can replace its result
+            grouped = group_path(min_order=reflected.group.order + 1)
+    kept = grouped if grouped is not None and grouped.group.order > reflected.group.order else reflected
+    both = Diagnostics("group" if kept is grouped else "reflection",
+                       reflection=reflected.diagnostics.reflection,
+                       group=grouped.diagnostics.group if grouped is not None else None)
+    return replace(kept, diagnostics=both)
 
 
 def _shape_inputs(shape, faces):
@@ -43,118 +153,26 @@ def _shape_inputs(shape, faces):
     return verts, faces
 
 
-def detect_symmetries(shape, faces=None, *, k: int = 6, k_refine: int = 100,
-                      spectrum: Spectrum | None = None, mode: str = "auto",
-                      n_samples: int = 2000, block_refine: bool = False, n_extrema: int = 12,
-                      nms_radius: float = 2.0, min_score: float = 0.5, n_refine: int = 8,
-                      generator: torch.Generator | None = None,
-                      device: torch.device | str | None = None, group_tol: float = 0.06) -> SymmetryResult:
-    """Find the global intrinsic symmetries of a triangle mesh.
-
-    Args:
-        shape: [V, 3] vertices (numpy or torch), or a ``symtorch.io.Mesh``.
-        faces: [F, 3] triangles.
-        k: target size of the coarse basis the candidates are solved in (snapped to a band end).
-        k_refine: target size of the refined basis (snapped to a band end, and to the spectrum
-            given); the matrices returned live in this basis. 100 against 60: dense error
-            TOSCA_Isometric 39.5 -> 33.4, SCAPE 45.4 -> 44.6, FAUST 47.8 -> 46.4, TOSCA 17.8 -> 17.6
-            x1e-3 (KLC10 rates +0.9, 0, -0.3, 0 points), ~0.45 s more a 12.5K-vertex mesh.
-        spectrum: a precomputed ``laplacian_spectrum(verts, faces, k >= k_refine + 8)`` (without one,
-            ``max(k_refine + 10, 60)`` eigenpairs are solved: the bands up to ``k_refine`` complete,
-            the last band dropped as possibly cut, and at least 60 for the group path's descriptors.
-            More changes nothing on the reflection path: SCAPE, TOSCA, FAUST and TOSCA_Isometric
-            give the same rates and errors from 70 or 160 eigenpairs at k_refine=60).
-        mode: 'reflection' (ALGORITHM §4), 'group' (§5, ``symtorch.detect.group_path``) or 'auto'.
-            'auto' runs the group path when the low spectrum has repeated eigenvalues at more than one
-            scale (``group_detect.has_multiplicities``: rotations make 2-dimensional eigenspaces all
-            the way up), and keeps its result when it is a continuous symmetry or a verified group of
-            order > 2; otherwise it runs the reflection path and keeps the larger verified group of
-            the two (the reflection path's on a tie). Shapes with a simple spectrum (a single mirror,
-            or none) go straight to the reflection path; where that path finds three or more
-            involutive permutations of its heat-kernel extrema with consistency scores below
-            ``group_tol`` (a C2v or D2h shape: two mirrors and a half turn, whose 1-D irreducible
-            representations leave the spectrum simple), the group path runs too and the larger
-            verified group is kept. Measured: SCAPE 0 of 71 and FAUST 0 of 10 meshes take that
-            second path, TOSCA 9 of 15 and TOSCA_Isometric 7 of 76 (quadrupeds; Cs either way),
-            Watertight tables 143, 152, 156, 160 all four (``scripts/verification_stats.py`` for the
-            four datasets; 0 disables it). The group path also runs where the reflection path
-            verifies no reflection: a lone half turn (C2, a two-bladed propeller) leaves the
-            spectrum simple and is no reflection, and a box or an elliptic cone has too few
-            heat-kernel extrema to pair (``iglict_intrinsicsym`` cube.obj: D2h, cone33.obj: C2v;
-            the reflection path alone gives C1). Every mesh of the four benchmarks has a verified
-            reflection, so none pays for it; an asymmetric shape does (C1 either way). The group path uses a
-            coarse basis of ``max(k, 20)`` and refines every element to ``min(k_refine, 40)``
-            (cost: one refinement per element). Either way ``result.group`` holds the group report
-            (``groups.GroupInfo.to_dict()``) and each ``kind`` follows its order and orientation.
-        n_samples: vertices the refinement evaluates the map on.
-        n_extrema: most heat-kernel extrema used as candidate points.
-        min_score: a candidate whose confidence is below this is not reported.
-        n_refine: candidate involutions the reflection path upsamples and compares.
-        generator: accepted so that callers can pass one; detection is deterministic and draws
-            nothing from it.
-        device: where the group path's batched candidate stages run (block Procrustes over all
-            candidate tuples, batched ICP, mean shift); default the spectrum's device (CPU when the
-            spectrum is solved here). The mesh geometry (heat-method geodesics, Dijkstra, k-d trees)
-            and the per-element refinement run on CPU in float64 whatever the device. The result's
-            matrices, maps and spectrum are on the device of the ``spectrum`` passed in (CPU without one).
-
-    Returns:
-        SymmetryResult, identity first, then best first.
-
-    Raises:
-        ValueError: for a point cloud, or bad mesh input.
-    """
-    timer = _Timer()
-    verts, faces = _shape_inputs(shape, faces)
-    if mode not in ("auto", "reflection", "group"):
-        raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
-    if spectrum is None:
-        spectrum = laplacian_spectrum(verts, faces, k=max(k_refine + 10, 60))
-    out_device = spectrum.evecs.device
-    batch_device = torch.device(device) if device is not None else out_device
-    # the geometry is solved on the host: the spectrum follows it there, the result goes back
-    spectrum = spectrum.to("cpu")
-    timer.lap("spectrum")
-    from .group_path import detect_group, has_multiplicities, with_group
-    from .reflection import detect_reflection
-    # one factorisation for both paths (the timer counts it in the first path's first stage); its
-    # fields are read back where the second path asks for a source the first one solved
-    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)
-
-    def group_path(min_order: int = 1):
-        return detect_group(verts, faces, spectrum, k=max(k, 20), k_refine=min(k_refine, 40),
-                            timer=timer, device=batch_device, solver=solver,
-                            min_order=min_order).to(out_device)
-
-    grouped = None
-    if mode == "group" or (mode == "auto" and has_multiplicities(spectrum.evals, max(k, 20))):
-        grouped = group_path()
-        if mode == "group" or grouped.continuous or grouped.group["order"] > 2:
-            return grouped
-    reflected = detect_reflection(verts, faces, spectrum, k=k, k_refine=k_refine, n_samples=n_samples,
-                                  n_extrema=n_extrema, nms_radius=nms_radius, n_candidates=max(n_refine, 1),
-                                  block_refine=block_refine, min_score=min_score, solver=solver, timer=timer)
-    result = with_group(reflected, verts, faces).to(out_device)
-    no_reflection = len(reflected.symmetries) == 1
-    if mode == "auto" and grouped is None and (no_reflection or _several_involutions(reflected.info, group_tol)):
-        # a simple spectrum but several equally consistent involutions of the extrema: a group whose
-        # irreducible representations are all 1-D (C2v, D2h) hides from the spectrum; and where no
-        # reflection verified, a lone half turn (C2) or extrema too few to pair (a box) might: ask
-        # the group path
-        with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
-            warnings.simplefilter("ignore")
-            # only a group larger than the reflection path's can replace its result
-            grouped = group_path(min_order=result.group["order"] + 1)
-        result.info["group_path"] = {"name": grouped.group["name"], "order": grouped.group["order"]}
-        if "reason" in grouped.info:
-            result.info["group_path"]["reason"] = grouped.info["reason"]
-        result.timings.update(timer.timings)  # the second opinion's stages count too
-    if grouped is not None and grouped.group["order"] > result.group["order"]:
-        return grouped
-    return result
-
-
-def _several_involutions(info: dict, tol: float) -> bool:
+def _several_involutions(reflected: SymmetryResult, tol: float) -> bool:
     """At least three involutive extrema permutations as consistent as ``tol`` (KLC units)."""
-    scores = info.get("candidate_scores", [])
+    scores = reflected.diagnostics.reflection.candidate_scores
     return tol > 0 and len(scores) >= 3 and scores[2] < tol
+
+
+def in_basis(result: SymmetryResult, spectrum: Spectrum, K: int) -> SymmetryResult:
+    """The result with every element's matrix in the first ``K`` eigenfunctions of ``spectrum``.
+
+    The group path refines its elements in a smaller basis than the reflection path (one refinement
+    per element); an element whose matrix has another size gets the block-projected pull-back of its
+    vertex map (``p2p_to_fmap``, ``block_project``), the identity the identity. The maps are unchanged.
+    """
+    bands = [b for b in solved_bands(spectrum.evals) if b.stop <= K]
+    evecs = spectrum.evecs[:, :K]
+    symmetries = []
+    for s in result.symmetries:
+        if s.fmap.shape[-1] != K:
+            fmap = torch.eye(K, dtype=evecs.dtype) if s.kind == "identity" \
+                else block_project(p2p_to_fmap(s.p2p, evecs, spectrum.mass), bands)
+            s = replace(s, fmap=fmap)
+        symmetries.append(s)
+    return replace(result, symmetries=symmetries, spectrum=spectrum, bands=bands)

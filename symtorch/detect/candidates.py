@@ -1,15 +1,18 @@
 """Candidate pair-sets for the group path (ALGORITHM §5.1-5.2): invariant points, pruned tuples.
 
 A symmetry maps the set ``P`` of multi-scale heat-kernel extrema onto itself (:func:`invariant_points`).
-Tuples of ``m + 1`` points of ``P`` pin every band of size ``m``: a few well-spread source tuples
-(:func:`source_tuples`) are paired with every ordered target tuple that keeps their geodesic distances
-and descriptors (:func:`candidate_tuples`), pruned level by level. ``symtorch.detect.group_path`` turns
-each (source, target) pair into a matrix by one batched block Procrustes.
+Two points may correspond only where their descriptors and their sorted distances to all of ``P``
+agree (:func:`partner_mask`). Tuples of ``m + 1`` points of ``P`` pin every band of size ``m``: a few
+well-spread source tuples (:func:`source_tuples`) are paired with every ordered target tuple that
+keeps their geodesic distances (:func:`candidate_tuples`), pruned level by level;
+:func:`tuple_pairs` runs the three. ``symtorch.detect.group_path`` turns each (source, target) pair
+into a matrix by one batched block Procrustes.
 """
 from __future__ import annotations
 
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -19,7 +22,7 @@ from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
 
-__all__ = ["invariant_points", "source_tuples", "candidate_tuples"]
+__all__ = ["invariant_points", "partner_mask", "source_tuples", "candidate_tuples", "tuple_pairs", "TuplePairs"]
 
 
 def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
@@ -123,3 +126,63 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
                           "symmetry or a point set with little structure)", stacklevel=2)
             part = part[:max_candidates]
     return part, total
+
+
+def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float) -> np.ndarray:
+    """[n, n] bool: which points of ``P`` may be the image of which.
+
+    Two points may correspond when their standardised multi-scale log-descriptors lie within
+    ``desc_tol`` times the median distance of all pairs of points (exact mirror partners have
+    identical descriptors, so the scale is the spread of all pairs), and when their sorted geodesic
+    distances to all of ``P`` agree (equal for orbit partners when ``P`` is invariant) to within
+    ``0.5 eps`` plus 5 % of a typical distance. Every point may be its own image.
+
+    Args:
+        desc: [n, D] positive descriptors of the points; dist: [n, n] geodesic distances among them.
+    """
+    n = len(dist)
+    logd = torch.log(desc.clamp_min(1e-12))
+    logd = logd / logd.std(0, keepdim=True).clamp_min(1e-12)
+    dd = torch.cdist(logd, logd).numpy()
+    off = dd[~np.eye(n, dtype=bool)]
+    allowed = dd <= max(desc_tol * float(np.median(off)) if off.size else 0.0, 1e-9)
+    prof = np.sort(dist, 1)
+    pd = np.abs(prof[:, None, :] - prof[None, :, :])
+    profile_agrees = np.median(pd, -1) <= 0.5 * EPS_KLC + 0.05 * np.median(prof[:, 1:], 1)[:, None]
+    return allowed & (profile_agrees | np.eye(n, dtype=bool))
+
+
+class TuplePairs(NamedTuple):
+    """Candidate correspondences: row ``i`` pairs source tuple ``src[i]`` with target ``dst[i]``.
+
+    Attributes:
+        src, dst: [B, t] indices into the point set.
+        n_with_partner: points with a partner other than themselves.
+        n_sources: source tuples used; n_before: ordered target tuples before pruning.
+    """
+
+    src: np.ndarray
+    dst: np.ndarray
+    n_with_partner: int
+    n_sources: int
+    n_before: int
+
+
+def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int,
+                delta: float) -> TuplePairs:
+    """A few well-spread source tuples of ``size`` points, each paired with every ordered target
+    tuple that keeps its geodesic distances (ratio ``delta``) and whose points are allowed partners.
+
+    Source points are taken among those that have a partner other than themselves.
+    """
+    partner = allowed.sum(1) > 1
+    srcs = source_tuples(dist, size, n_sources, partner)
+    tuples_src, tuples_dst, before = [], [], 0
+    for src in srcs:
+        q, tot = candidate_tuples(src, dist, allowed, delta)
+        before += tot
+        tuples_src.append(np.repeat(np.asarray(src)[None], len(q), 0))
+        tuples_dst.append(q)
+    P = np.concatenate(tuples_src) if tuples_src else np.zeros((0, size), dtype=np.int64)
+    Q = np.concatenate(tuples_dst) if tuples_dst else np.zeros((0, size), dtype=np.int64)
+    return TuplePairs(P, Q, int(partner.sum()), len(srcs), int(before))

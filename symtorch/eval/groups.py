@@ -1,4 +1,4 @@
-"""Scoring whole detected groups (issue 4): per-element KLC10 rates, and orbit ground truth.
+"""Scoring whole detected groups: per-element KLC10 rates, and orbit ground truth.
 
 Protocol, pinned:
 
@@ -28,12 +28,17 @@ from ..geodesics import GeodesicSolver
 __all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates", "rigid_residual"]
 
 
-def dihedral_permutations(n: int) -> np.ndarray:
-    """[2n, n] the permutations of a cycle of n positions: n rotations, then n reflections."""
+def dihedral_permutations(n: int) -> Tensor:
+    """[2n, n] long, the permutations of a cycle of n positions: n rotations, then n reflections
+    (for n <= 2 the reflections repeat rotations: [n, n])."""
+    return torch.as_tensor(_dihedral(n))
+
+
+def _dihedral(n: int) -> np.ndarray:
     i = np.arange(n)
     rots = [(i + j) % n for j in range(n)]
     refl = [(j - i) % n for j in range(n)]
-    return np.asarray(rots + refl if n > 2 else rots)  # for n <= 2 the reflections repeat rotations
+    return np.asarray(rots + refl if n > 2 else rots, dtype=np.int64)
 
 
 def dihedral_orbit_errors(solver: GeodesicSolver, p2p, orbits) -> Tensor:
@@ -49,7 +54,7 @@ def dihedral_orbit_errors(solver: GeodesicSolver, p2p, orbits) -> Tensor:
     for o in orbits:
         o = np.asarray(o, dtype=np.int64).reshape(-1)
         D = solver.distances_from(o).to("cpu", torch.float64).numpy()[:, p[o]]  # [target, point]
-        perms = dihedral_permutations(len(o)) if len(o) > 1 else np.zeros((1, 1), dtype=np.int64)
+        perms = _dihedral(len(o)) if len(o) > 1 else np.zeros((1, 1), dtype=np.int64)
         err = D[perms, np.arange(len(o))[None]]  # [n_perm, n]: d(g(o_i), o_perm(i))
         out.append(err[err.sum(1).argmin()])
     return torch.as_tensor(np.concatenate(out) if out else np.zeros(0))
@@ -59,8 +64,8 @@ def element_rates(solver: GeodesicSolver, true_maps, detected_maps, n_points: in
     """Match detected elements to true ones and give each matched pair's KLC10 rate.
 
     Returns:
-        (GroupScore, rates [T] float: share of the points within eps of the true image, 0 where the
-        true element was missed).
+        (GroupScore, rates [T] float64: share of the points within eps of the true image, 0 where
+        the true element was missed).
     """
     sc = score_group(true_maps, detected_maps, solver, n_points=n_points)
     V = solver.n_verts
@@ -73,7 +78,7 @@ def element_rates(solver: GeodesicSolver, true_maps, detected_maps, n_points: in
         D = solver.distances_from(T[t][pts]).to("cpu", torch.float64).numpy()  # [N, V]
         err = D[np.arange(len(pts)), Dm[d][pts]]
         rates[t] = float((err < eps).mean())
-    return sc, rates
+    return sc, torch.as_tensor(rates)
 
 
 def rigid_residual(verts, p2p) -> float:

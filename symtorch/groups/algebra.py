@@ -1,6 +1,7 @@
-"""Symmetry groups: composition, inverses, orders, Cayley tables, closure and names.
+"""Symmetry groups as algebra: composition, inverses, orders, Cayley tables, axioms and closure.
 
-ALGORITHM §2 (conventions) and §5 steps 5-6; each convention is pinned by tests/test_groups.py.
+``docs/method.md`` §2 (conventions) and §5 (closure, tables); each convention is pinned by
+``tests/test_algebra.py``. Names and orientation: :mod:`symtorch.groups.naming`.
 
 Note:
     - A symmetry ``g`` is a vertex map ``p2p [V]`` (``p2p[i]`` is the image of vertex ``i``) or its
@@ -10,22 +11,18 @@ Note:
     - The identity is ``I``, the inverse of an orthogonal ``C`` is ``C.mT``, and the order of ``g``
       is the smallest ``n`` with ``C^n ≈ I``.
     - Cayley table: ``table[a, b]`` is the index of ``a ∘ b`` ("apply b, then a"), i.e. of the
-      element nearest to ``mats[b] @ mats[a]``: row times column, the usual reading of a group
+      element nearest to ``fmaps[b] @ fmaps[a]``: row times column, the usual reading of a group
       table. The caption of the paper's Table 3 reads its entry (i, j) as ``g_j · g_i`` with the
       paper's product ``g_x · g_y ↔ C_y C_x`` (row applied first), so the paper's layout is
       ``table.mT``. Inverses, orders and names do not depend on this choice.
     - Matrices are compared by relative Frobenius distance ``||A - B||_F / ||B||_F`` (B the element
       of the set; ``||B||_F = sqrt(K)`` when B is orthogonal).
-    - Orientation is intrinsic: an element "reverses" when it flips the orientation of the surface
-      (``orientation_reversing``). A reversing element of order 2 is a *reflection*, of higher
-      order a *rotoreflection*; a preserving element other than the identity is a *rotation*.
 """
 from __future__ import annotations
 
 import logging
 import math
 import warnings
-from collections import Counter
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -36,6 +33,10 @@ from torch import Tensor
 from ..procrustes import nearest_orthogonal
 
 log = logging.getLogger(__name__)
+
+__all__ = ["DEFAULT_TOL", "compose_fmap", "compose_p2p", "inverse_fmap", "inverse_p2p", "Cayley",
+           "cayley_table", "identity_index", "element_orders", "inverses", "GroupCheck", "check_group",
+           "Closure", "closure"]
 
 DEFAULT_TOL = 0.25  # relative Frobenius distance under which two symmetry matrices are "the same"
 
@@ -54,16 +55,16 @@ def _check_p2p(p2p, name: str = "p2p", n_verts: int | None = None) -> Tensor:
     return p2p
 
 
-def _check_mats(mats, name: str = "mats", batched: bool = True) -> Tensor:
-    if not isinstance(mats, Tensor) or not mats.is_floating_point():
-        raise ValueError(f"{name} must be a floating-point tensor, got {type(mats).__name__}"
-                         + (f" {mats.dtype}" if isinstance(mats, Tensor) else ""))
-    if (batched and mats.ndim != 3) or mats.ndim < 2 or mats.shape[-1] != mats.shape[-2]:
+def _check_fmaps(fmaps, name: str = "fmaps", batched: bool = True) -> Tensor:
+    if not isinstance(fmaps, Tensor) or not fmaps.is_floating_point():
+        raise ValueError(f"{name} must be a floating-point tensor, got {type(fmaps).__name__}"
+                         + (f" {fmaps.dtype}" if isinstance(fmaps, Tensor) else ""))
+    if (batched and fmaps.ndim != 3) or fmaps.ndim < 2 or fmaps.shape[-1] != fmaps.shape[-2]:
         want = "[G, K, K]" if batched else "[..., K, K]"
-        raise ValueError(f"{name} must be {want}, got {list(mats.shape)}")
-    if batched and mats.shape[0] == 0:
+        raise ValueError(f"{name} must be {want}, got {list(fmaps.shape)}")
+    if batched and fmaps.shape[0] == 0:
         raise ValueError(f"{name} is empty (G = 0 symmetries)")
-    return mats
+    return fmaps
 
 
 def _is_table(x) -> bool:
@@ -100,7 +101,7 @@ def compose_fmap(C_g: Tensor, C_h: Tensor) -> Tensor:
     Returns:
         [..., K, K].
     """
-    _check_mats(C_g, "C_g", batched=False), _check_mats(C_h, "C_h", batched=False)
+    _check_fmaps(C_g, "C_g", batched=False), _check_fmaps(C_h, "C_h", batched=False)
     if C_g.shape[-1] != C_h.shape[-1]:
         raise ValueError(f"C_g is K={C_g.shape[-1]} but C_h is K={C_h.shape[-1]}")
     return C_h @ C_g
@@ -135,7 +136,7 @@ def inverse_fmap(C: Tensor) -> Tensor:
     Returns:
         [..., K, K].
     """
-    return _check_mats(C, "C", batched=False).mT
+    return _check_fmaps(C, "C", batched=False).mT
 
 
 def inverse_p2p(p2p: Tensor, points: Tensor | None = None) -> Tensor:
@@ -196,42 +197,42 @@ class Cayley(NamedTuple):
 
     Attributes:
         table: [G, G] long, ``table[a, b]`` = index of ``a ∘ b`` (-1 where none is within tol).
-        residual: [G, G] relative distance from ``mats[b] @ mats[a]`` to its nearest element.
+        residual: [G, G] relative distance from ``fmaps[b] @ fmaps[a]`` to its nearest element.
     """
 
     table: Tensor
     residual: Tensor
 
 
-def cayley_table(mats: Tensor, tol: float | None = None) -> Cayley:
+def cayley_table(fmaps: Tensor, tol: float | None = None) -> Cayley:
     """Group table of a set of symmetry matrices (paper §5).
 
-    ``table[a, b]`` is the index of the element nearest to ``mats[b] @ mats[a]``, the matrix of
+    ``table[a, b]`` is the index of the element nearest to ``fmaps[b] @ fmaps[a]``, the matrix of
     ``a ∘ b`` = "apply b, then a": row ``a`` is applied last. The paper's Table 3 is ``table.mT``
     (its caption reads entry (i, j) as "g_i, then g_j"); see the module note.
 
     Args:
-        mats: [G, K, K] symmetry matrices.
+        fmaps: [G, K, K] symmetry matrices.
         tol: if given, products farther than ``tol`` (relative Frobenius) from every element get -1,
             so that ``check_group`` reports the set as not closed. None: always the nearest.
 
     Returns:
         Cayley(table [G, G] long, residual [G, G] relative distances).
     """
-    mats = _check_mats(mats)
-    G, K = mats.shape[0], mats.shape[-1]
-    table = torch.empty(G, G, dtype=torch.long, device=mats.device)
-    residual = torch.empty(G, G, dtype=mats.dtype, device=mats.device)
+    fmaps = _check_fmaps(fmaps)
+    G, K = fmaps.shape[0], fmaps.shape[-1]
+    table = torch.empty(G, G, dtype=torch.long, device=fmaps.device)
+    residual = torch.empty(G, G, dtype=fmaps.dtype, device=fmaps.device)
     rows = max(1, (1 << 24) // max(G * K * K, 1))  # bound the [rows, G, K, K] product tensor
     for lo in range(0, G, rows):
-        a = mats[lo:lo + rows]
-        prod = mats[None, :] @ a[:, None]  # [a, b] = mats[b] @ mats[a]: "apply b, then a"
-        res, idx = _rel_dist(prod.reshape(-1, K, K), mats).min(-1)
+        a = fmaps[lo:lo + rows]
+        prod = fmaps[None, :] @ a[:, None]  # [a, b] = fmaps[b] @ fmaps[a]: "apply b, then a"
+        res, idx = _rel_dist(prod.reshape(-1, K, K), fmaps).min(-1)
         table[lo:lo + rows], residual[lo:lo + rows] = idx.view(-1, G), res.view(-1, G)
     if tol is not None:
         table[residual > tol] = -1
         if G > 1:
-            d = _rel_dist(mats, mats) + torch.eye(G, dtype=mats.dtype, device=mats.device) * 1e30
+            d = _rel_dist(fmaps, fmaps) + torch.eye(G, dtype=fmaps.dtype, device=fmaps.device) * 1e30
             if bool((d < tol).any()):
                 warnings.warn(f"some elements are within tol={tol} of each other: duplicates make "
                               "the table ambiguous", stacklevel=2)
@@ -255,9 +256,9 @@ def identity_index(x: Tensor, tol: float = DEFAULT_TOL) -> int:
         ar = torch.arange(T.shape[0], device=T.device)
         ok = ((T == ar[None]).all(1) & (T == ar[:, None]).all(0)).nonzero()
         return int(ok[0]) if len(ok) else -1
-    mats = _check_mats(x)
-    eye = torch.eye(mats.shape[-1], dtype=mats.dtype, device=mats.device)
-    d = _rel_dist(mats, eye[None])[:, 0]
+    fmaps = _check_fmaps(x)
+    eye = torch.eye(fmaps.shape[-1], dtype=fmaps.dtype, device=fmaps.device)
+    d = _rel_dist(fmaps, eye[None])[:, 0]
     e = int(d.argmin())
     if float(d[e]) > tol:
         warnings.warn(f"no element is within tol={tol} of the identity (nearest: "
@@ -304,7 +305,7 @@ def element_orders(x: Tensor, *, tol: float = DEFAULT_TOL, max_order: int = 120)
             raise ValueError("table has no identity element: orders are undefined")
         return torch.as_tensor(_orders_np(T.cpu().numpy(), e), device=T.device)
     # Powers of a non-orthogonal C drift in norm; its nearest orthogonal matrix only in angle.
-    C = nearest_orthogonal(_check_mats(x, "x", batched=False))
+    C = nearest_orthogonal(_check_fmaps(x, "x", batched=False))
     K = C.shape[-1]
     eye = torch.eye(K, dtype=C.dtype, device=C.device)
     orders = torch.zeros(C.shape[:-2], dtype=torch.long, device=C.device)
@@ -352,7 +353,7 @@ def check_group(table: Tensor, residual: Tensor | None = None, max_report: int =
     """Check the group axioms on a table (``table[a, b]`` = ``a ∘ b``; -1 = product not in the set).
 
     Args:
-        table: [G, G] integer table, e.g. from ``cayley_table(mats, tol)``.
+        table: [G, G] integer table, e.g. from ``cayley_table(fmaps, tol)``.
         residual: [G, G] optional, quoted in the report of products that are not in the set.
         max_report: examples quoted per failed axiom.
 
@@ -405,15 +406,15 @@ def check_group(table: Tensor, residual: Tensor | None = None, max_report: int =
 
 
 class Closure(NamedTuple):
-    """``mats [G', K, K]`` (the input first, then what was added), ``added [G']`` bool, and
+    """``fmaps [G', K, K]`` (the input first, then what was added), ``added [G']`` bool, and
     ``converged`` (False when ``max_order`` stopped the growth)."""
 
-    mats: Tensor
+    fmaps: Tensor
     added: Tensor
     converged: bool
 
 
-def closure(mats: Tensor, tol: float = DEFAULT_TOL, max_order: int = 240) -> Closure:
+def closure(fmaps: Tensor, tol: float = DEFAULT_TOL, max_order: int = 240) -> Closure:
     """Close a set of symmetry matrices under composition (ALGORITHM §5 step 5).
 
     Breadth-first over the Cayley graph: each round composes the newest elements with every input
@@ -423,18 +424,18 @@ def closure(mats: Tensor, tol: float = DEFAULT_TOL, max_order: int = 240) -> Clo
     the inputs are the whole generated group, identity included.
 
     Args:
-        mats: [G, K, K] symmetry matrices (left unchanged at the front of the output).
+        fmaps: [G, K, K] symmetry matrices (left unchanged at the front of the output).
         tol: relative Frobenius distance under which a product counts as already present.
         max_order: stop (and warn) once the set exceeds this size: a continuous symmetry, or a
             ``tol`` tighter than the noise of the matrices, makes the set grow without bound.
 
     Returns:
-        Closure(mats [G', K, K], added [G'] bool, converged).
+        Closure(fmaps [G', K, K], added [G'] bool, converged).
     """
-    mats = _check_mats(mats)
-    G, K = mats.shape[0], mats.shape[-1]
-    gens = nearest_orthogonal(mats)
-    cur, frontier, converged = mats, gens, True
+    fmaps = _check_fmaps(fmaps)
+    G, K = fmaps.shape[0], fmaps.shape[-1]
+    gens = nearest_orthogonal(fmaps)
+    cur, frontier, converged = fmaps, gens, True
     while len(frontier):
         cand = (frontier[:, None] @ gens[None, :]).reshape(-1, K, K)  # C_x @ C_s: "x, then s"
         cand = nearest_orthogonal(cand)
@@ -452,7 +453,7 @@ def closure(mats: Tensor, tol: float = DEFAULT_TOL, max_order: int = 240) -> Clo
             warnings.warn(f"closure exceeded max_order={max_order} elements: continuous "
                           f"symmetry, or tol={tol} below the noise of the matrices", stacklevel=2)
             break
-    added = torch.zeros(len(cur), dtype=torch.bool, device=mats.device)
+    added = torch.zeros(len(cur), dtype=torch.bool, device=fmaps.device)
     added[G:] = True
     if len(cur) > G:
         log.info("closure added %d elements to %d (indices %d..%d)", len(cur) - G, G, G,
@@ -460,7 +461,7 @@ def closure(mats: Tensor, tol: float = DEFAULT_TOL, max_order: int = 240) -> Clo
     return Closure(cur, added, converged)
 
 
-# ----------------------------------------------------------------------------------- group names
+# ---------------------------------------------------------------------------------- subgroups
 def _subtable(T: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """Table of the subgroup on ``idx`` (renumbered 0..len-1)."""
     lookup = np.full(T.shape[0], -1)
@@ -511,311 +512,3 @@ def _z2_homs(T: np.ndarray, e: int) -> list[np.ndarray]:
         if consistent:
             homs.append(phi.astype(bool))
     return homs
-
-
-def _structure(T: np.ndarray) -> tuple:
-    G = T.shape[0]
-    e = int(np.flatnonzero((T == np.arange(G)[None]).all(1))[0])
-    orders = _orders_np(T, e)
-    if orders.max() == G:
-        return ("cyclic", G)
-    if G % 2 == 0 and G >= 4:  # D_n: a cyclic subgroup of index 2 and involutions everywhere else
-        n = G // 2
-        for r in np.flatnonzero(orders == n):
-            rot = _generated(T, [int(r)], e)
-            if (orders[~rot] == 2).all():
-                return ("dihedral", n)
-    counts = Counter(orders.tolist())
-    # Polyhedral rotation groups are fixed by their element-order statistics at these orders.
-    if G == 12 and counts[3] == 8:
-        return ("alternating", 4)
-    if G == 24 and counts == Counter({1: 1, 2: 9, 3: 8, 4: 6}):
-        return ("symmetric", 4)
-    if G == 60 and counts[5] == 24:
-        return ("alternating", 5)
-    if G % 2 == 0:  # K × Z2: a central involution outside an index-2 subgroup K
-        central = (T == T.T).all(1) & (orders == 2)
-        best = None
-        for phi in _z2_homs(T, e):
-            if (central & phi).any():
-                inner = _structure(_subtable(T, np.flatnonzero(~phi)))
-                best = ("direct", inner, ("cyclic", 2))
-                if inner[0] != "unknown":
-                    break
-        if best is not None:
-            return best
-    return ("unknown", G)
-
-
-def _group_np(table: Tensor) -> np.ndarray:
-    T = _check_table(table)
-    check = check_group(T)
-    if not check.is_group:
-        raise ValueError(f"table is {check}")
-    return T.cpu().numpy()
-
-
-def abstract_group(table: Tensor) -> tuple:
-    """Abstract structure of a group from its table.
-
-    Returns one of ``("cyclic", n)`` (Z_n; n = 1 is the trivial group), ``("dihedral", n)`` (D_n of
-    order 2n; n = 2 is the Klein four-group), ``("alternating", 4)``, ``("symmetric", 4)``,
-    ``("alternating", 5)`` (the rotation groups T, O, I), ``("direct", inner, ("cyclic", 2))``
-    (inner × Z2), or ``("unknown", G)``. The first match in that order wins, so D_n × Z2 with n odd
-    reads ``("dihedral", 2n)`` and Z_n × Z2 with n odd reads ``("cyclic", 2n)``.
-
-    Raises:
-        ValueError: the table is not a group (with the problems found).
-    """
-    return _structure(_group_np(table))
-
-
-def _fallback(G: int) -> str:
-    return f"order-{G} group"
-
-
-def identify_group(table: Tensor, reversing: Tensor) -> str:
-    """Schoenflies name of a symmetry group, from its table and which elements reverse orientation.
-
-    The orientation-preserving elements H (rotations) form a subgroup of index 1 or 2. With no
-    reversing element the name is that of H: ``C1``, ``Cn``, ``Dn``, ``T``, ``O``, ``I``. Otherwise:
-
-    - H trivial: ``Cs`` (one reflection; intrinsically a reversing involution is a reflection, so a
-      point inversion ``Ci`` is also reported as ``Cs``);
-    - H = C_n: ``Cnv`` when every reversing element is a reflection (G ≅ D_n), else ``Cnh`` when a
-      central reflection exists (G = C_n × σh), else ``S2n`` when G is cyclic;
-    - H = D_n: ``Dnh`` when a central reflection exists, else ``Dnd`` when G ≅ D_2n;
-    - H = T: ``Th`` (central reflection) or ``Td`` (G ≅ S4); H = O: ``Oh``; H = I: ``Ih``;
-    - anything else: ``"order-G group"``.
-
-    Note:
-        A table with orientation flags cannot tell apart C2v / C2h, Cnh / S2n for odd n, and
-        Dnh / Dnd for odd n (same abstract group, same reversing coset); the first of each pair is
-        returned.
-
-    Args:
-        table: [G, G] group table (``table[a, b]`` = ``a ∘ b``).
-        reversing: [G] bool, True for orientation-reversing elements (``orientation_reversing``).
-
-    Returns:
-        The name, e.g. ``"D5h"``.
-
-    Raises:
-        ValueError: the table is not a group.
-    """
-    T = _group_np(table)
-    G = T.shape[0]
-    rev = _check_reversing(reversing, G)
-    e = int(np.flatnonzero((T == np.arange(G)[None]).all(1))[0])
-    # Orientation is a homomorphism onto Z2: rev(a ∘ b) = rev(a) xor rev(b), rev(e) = False.
-    if rev[e] or (rev[T] != (rev[:, None] ^ rev[None, :])).any():
-        warnings.warn("reversing flags are inconsistent with the table (rev(a∘b) ≠ rev(a) xor "
-                      "rev(b), or the identity reverses); cannot name the group", stacklevel=2)
-        return _fallback(G)
-    H = np.flatnonzero(~rev)
-    sH = _structure(_subtable(T, H))
-    if not rev.any():
-        if sH[0] == "cyclic":
-            return f"C{sH[1]}"
-        if sH[0] == "dihedral":
-            return f"D{sH[1]}"
-        return {("alternating", 4): "T", ("symmetric", 4): "O", ("alternating", 5): "I"}.get(
-            sH, _fallback(G))
-    if len(H) == 1:
-        return "Cs"
-    orders = _orders_np(T, e)
-    central = (T == T.T).all(1)
-    has_sigma_h = bool((central & rev & (orders == 2)).any())
-    sG = _structure(T)
-    if sH[0] == "cyclic":
-        n = sH[1]
-        if (orders[rev] == 2).all():
-            return f"C{n}v"
-        if has_sigma_h:
-            return f"C{n}h"
-        if sG == ("cyclic", G):
-            return f"S{2 * n}"
-    elif sH[0] == "dihedral":
-        n = sH[1]
-        if has_sigma_h:
-            return f"D{n}h"
-        if sG == ("dihedral", 2 * n):
-            return f"D{n}d"
-    elif sH == ("alternating", 4):
-        if has_sigma_h:
-            return "Th"
-        if sG == ("symmetric", 4):
-            return "Td"
-    elif sH == ("symmetric", 4) and has_sigma_h:
-        return "Oh"
-    elif sH == ("alternating", 5) and has_sigma_h:
-        return "Ih"
-    return _fallback(G)
-
-
-def kind_of(order: int, reversing: bool) -> str:
-    """``'identity'`` (order 1), ``'reflection'`` (reversing, order 2), ``'rotation'`` (preserving),
-    or ``'rotoreflection'`` (reversing, order > 2 or unknown = 0).
-
-    Raises:
-        ValueError: a negative order, or a reversing element of order 1.
-    """
-    order, reversing = int(order), bool(reversing)
-    if order < 0:
-        raise ValueError(f"order must be >= 0 (0 = unknown), got {order}")
-    if order == 1:
-        if reversing:
-            raise ValueError("an element of order 1 is the identity and cannot reverse orientation")
-        return "identity"
-    if reversing:
-        return "reflection" if order == 2 else "rotoreflection"
-    return "rotation"
-
-
-# ----------------------------------------------------------------------------------- orientation
-def orientation_score(p2p: Tensor, verts: Tensor, faces: Tensor, *,
-                      max_stretch: float = 3.0) -> Tensor:
-    """Area-weighted vote in [-1, 1]: +1 for a map that keeps the surface orientation, -1 for one
-    that flips it (a reflection).
-
-    For each face ``(a, b, c)`` the image triangle ``(p2p[a], p2p[b], p2p[c])``, placed at
-    ``verts[p2p]``, is compared with the mesh's own orientation there: the sign of the dot product
-    of its normal with the sum of the vertex normals at its corners. Only local quantities enter,
-    so it works for intrinsic (non-rigid) symmetries. Faces whose image collapses (repeated vertex,
-    zero area) or is not local (an image edge longer than ``max_stretch`` times the face's longest
-    edge) do not vote.
-
-    Args:
-        p2p: [..., V] vertex maps.
-        verts: [V, 3] vertex positions.
-        faces: [F, 3] triangles, consistently oriented.
-        max_stretch: locality bound for a vote.
-
-    Returns:
-        [...] scores in the dtype of ``verts`` (0 where no face could vote).
-    """
-    verts = torch.as_tensor(verts)
-    if verts.ndim != 2 or verts.shape[1] != 3 or not verts.is_floating_point():
-        raise ValueError(f"verts must be [V, 3] floats, got {list(verts.shape)} {verts.dtype}")
-    faces = torch.as_tensor(faces, device=verts.device)
-    if faces.ndim != 2 or faces.shape[1] != 3 or faces.is_floating_point():
-        raise ValueError(f"faces must be [F, 3] long, got {list(faces.shape)} {faces.dtype}")
-    faces = faces.long()
-    V = verts.shape[0]
-    p2p = _check_p2p(p2p, n_verts=V).to(verts.device)
-    if p2p.shape[-1] != V:
-        raise ValueError(f"p2p must be [..., V] = [..., {V}], got {list(p2p.shape)}")
-    x = verts
-    fn = torch.linalg.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
-    vn = torch.zeros_like(x).index_add_(0, faces.reshape(-1), fn.repeat_interleave(3, 0))  # [V, 3]
-    src_edge = (x[faces] - x[faces.roll(1, -1)]).norm(dim=-1).amax(-1)  # [F]
-    img = p2p[..., faces]                                                 # [..., F, 3]
-    y = x[img]                                                            # [..., F, 3, 3]
-    n_img = torch.linalg.cross(y[..., 1, :] - y[..., 0, :], y[..., 2, :] - y[..., 0, :])
-    vote = torch.sign((n_img * vn[img].sum(-2)).sum(-1))                  # [..., F]
-    img_edge = (y - y.roll(1, -2)).norm(dim=-1).amax(-1)                  # [..., F]
-    distinct = (img != img.roll(1, -1)).all(-1)                           # no repeated vertex
-    # 1e-12: a numerically flat image triangle has no orientation
-    valid = distinct & (img_edge <= max_stretch * src_edge) \
-        & (n_img.norm(dim=-1) > 1e-12 * src_edge.square())
-    w = fn.norm(dim=-1) * valid  # face area (x2) weights
-    return (w * vote).sum(-1) / w.sum(-1).clamp_min(torch.finfo(w.dtype).tiny)
-
-
-def orientation_reversing(p2p: Tensor, verts: Tensor, faces: Tensor, *, max_stretch: float = 3.0,
-                          return_score: bool = False) -> bool | tuple[bool, float]:
-    """Whether a vertex map reverses the surface orientation (``orientation_score < 0``).
-
-    Warns when the vote is weak (|score| < 0.2: a very noisy map, or no face could vote).
-
-    Args:
-        p2p: [V] vertex map.
-        verts: [V, 3]; faces: [F, 3] consistently oriented.
-        max_stretch: see ``orientation_score``.
-        return_score: also return the score in [-1, 1].
-
-    Returns:
-        bool, or (bool, score).
-    """
-    p2p = _check_p2p(p2p)
-    if p2p.ndim != 1:
-        raise ValueError(f"p2p must be [V] (orientation_score takes a batch), got "
-                         f"{list(p2p.shape)}")
-    score = float(orientation_score(p2p, verts, faces, max_stretch=max_stretch))
-    if abs(score) < 0.2:
-        warnings.warn(f"orientation vote is ambiguous (score {score:+.2f})", stacklevel=2)
-    return (score < 0, score) if return_score else score < 0
-
-
-# ---------------------------------------------------------------------------------------- summary
-@dataclass(frozen=True)
-class GroupInfo:
-    """A symmetry group, described.
-
-    Attributes:
-        name: Schoenflies name (``identify_group``), e.g. ``"D5h"``.
-        order: G.
-        table: [G, G] long, ``table[a, b]`` = index of ``a ∘ b`` ("apply b, then a").
-        inverses: [G] long.
-        orders: [G] long.
-        reversing: [G] bool, orientation-reversing elements.
-        identity: index of the identity.
-        abstract: ``abstract_group(table)``.
-        residual: [G, G] Cayley residuals when built from matrices, else None.
-    """
-
-    name: str
-    order: int
-    table: Tensor
-    inverses: Tensor
-    orders: Tensor
-    reversing: Tensor
-    identity: int
-    abstract: tuple
-    residual: Tensor | None = None
-
-    @property
-    def kinds(self) -> list[str]:
-        """``kind_of`` each element."""
-        return [kind_of(o, r) for o, r in zip(self.orders.tolist(), self.reversing.tolist())]
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (lists and plain numbers)."""
-        def plain(t):
-            return [plain(x) for x in t] if isinstance(t, (tuple, list)) else t
-
-        out = dict(name=self.name, order=self.order, abstract=plain(self.abstract),
-                   identity=self.identity, table=self.table.tolist(),
-                   inverses=self.inverses.tolist(), orders=self.orders.tolist(),
-                   reversing=self.reversing.tolist(), kinds=self.kinds,
-                   table_convention="table[a][b] = a∘b (apply b, then a)")
-        if self.residual is not None:
-            out["max_residual"] = float(self.residual.max())
-        return out
-
-
-def group_info(x: Tensor, reversing: Tensor, *, tol: float | None = None) -> GroupInfo:
-    """Table, inverses, orders, structure and name of a symmetry group.
-
-    Args:
-        x: [G, K, K] symmetry matrices (tabled by ``cayley_table(x, tol)``) or a [G, G] table.
-        reversing: [G] bool orientation flags.
-        tol: see ``cayley_table``.
-
-    Returns:
-        GroupInfo.
-
-    Raises:
-        ValueError: the table is not a group (run ``closure`` first).
-    """
-    residual = None
-    if _is_table(x):
-        table = _check_table(x)
-    else:
-        table, residual = cayley_table(x, tol)
-    G = table.shape[0]
-    rev = torch.as_tensor(_check_reversing(reversing, G), device=table.device)
-    name = identify_group(table, rev)
-    return GroupInfo(name=name, order=G, table=table, inverses=inverses(table),
-                     orders=element_orders(table), reversing=rev, identity=identity_index(table),
-                     abstract=abstract_group(table), residual=residual)

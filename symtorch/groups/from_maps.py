@@ -17,7 +17,7 @@ import torch
 from torch import Tensor
 
 from ..units import EPS_KLC
-from .algebra import _subtable, check_group
+from .algebra import _subtable, _z2_homs, check_group
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 __all__ = ["map_table", "largest_subgroup", "consistent_orientation", "canonical_order"]
 
 
-def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[np.ndarray, np.ndarray]:
+def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[Tensor, Tensor]:
     """Group table of vertex maps: ``table[a, b]`` = the map nearest to ``a ∘ b`` ("b, then a").
 
     Distances are the median Euclidean gap of the images of ``samples`` on the unit-area shape, in
@@ -33,7 +33,7 @@ def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[
     is wrong on a small part only.
 
     Returns:
-        (table [G, G] int, gap [G, G] of each product to its nearest map).
+        (table [G, G] long, gap [G, G] of each product to its nearest map, in eps).
     """
     P = torch.stack(p2ps)  # [G, V]
     img = P[:, samples]  # [G, S]
@@ -43,7 +43,7 @@ def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[
     # flips one limb) is the same element, not a new one
     gap = (verts_unit[comp][:, :, None] - verts_unit[img][None, None]).norm(dim=-1).median(-1).values
     best, idx = gap.min(-1)
-    return idx.numpy(), (best / EPS_KLC).numpy()
+    return idx, best / EPS_KLC
 
 
 def _forms_group(T: np.ndarray, idx: list[int]) -> bool:
@@ -67,7 +67,7 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     Returns:
         (indices kept, [G', G'] long table among them, renumbered in the order kept).
     """
-    T, gap = map_table(p2ps, verts_unit, samples)
+    T, gap = (x.numpy() for x in map_table(p2ps, verts_unit, samples))
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
     pos = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
     same = ((pos[:, None] - pos[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
@@ -100,7 +100,7 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     return group, torch.as_tensor(_subtable(T, np.asarray(group)), dtype=torch.long)
 
 
-def consistent_orientation(table: Tensor, scores) -> np.ndarray:
+def consistent_orientation(table: Tensor, scores) -> Tensor:
     """Orientation flags consistent with the group table, closest to the per-element votes.
 
     Orientation is a homomorphism onto Z2 (reversing ∘ reversing preserves); of the trivial one and
@@ -111,7 +111,6 @@ def consistent_orientation(table: Tensor, scores) -> np.ndarray:
     Returns:
         [G] bool, True for orientation-reversing elements.
     """
-    from .algebra import _z2_homs
 
     T = np.asarray(table)
     G = T.shape[0]
@@ -119,7 +118,7 @@ def consistent_orientation(table: Tensor, scores) -> np.ndarray:
     votes = np.asarray([float(v) for v in scores])
     options = [np.zeros(G, dtype=bool)] + _z2_homs(T, e)
     agree = [float((votes * np.where(h, -1.0, 1.0)).sum()) for h in options]
-    return options[int(np.argmax(agree))]
+    return torch.as_tensor(options[int(np.argmax(agree))])
 
 
 def canonical_order(table: Tensor, reversing: Tensor, cost: list[float]) -> list[int]:

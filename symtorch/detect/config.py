@@ -1,0 +1,186 @@
+"""The knobs of symmetry detection, one frozen dataclass per path.
+
+:class:`ReflectionConfig` tunes the reflection path (:mod:`.reflection`), :class:`GroupConfig` the
+group path (:mod:`.group_path`) and :class:`DetectConfig` the automatic policy of
+:func:`~symtorch.detect.detect_symmetries`, which also sets the two basis sizes both paths work in.
+The defaults are the settings the benchmarks in ``BENCHMARKS.md`` were run with. Lengths are in
+units of the KLC radius ``EPS_KLC`` of the unit-area shape; distortions likewise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+__all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION_KEYWORDS"]
+
+
+@dataclass(frozen=True)
+class ReflectionConfig:
+    """Knobs of the reflection path (ALGORITHM §4); the stages are in :mod:`.reflection`.
+
+    Attributes:
+        n_extrema: most heat-kernel extrema used as candidate points.
+        nms_radius: no two extrema closer than this (geodesic, in EPS_KLC).
+        n_candidates: candidate involutions upsampled and compared.
+        k_select: basis size the candidates are compared in (snapped to a band end).
+        block_refine: keep every upsampling step block-orthogonal (else band-wise only at the end).
+        prune_k: each candidate's upsampling stops at this basis size (a band end) to vote;
+            0: no stop.
+        prune_vote: a candidate whose vote there exceeds this already preserves the orientation
+            and is not grown further.
+        select_vote: candidates voting below ``-select_vote`` are compared by geodesic distortion
+            on ``n_select_verify`` samples, the others by their vote alone.
+        n_select_verify: samples of the selection's distortion measure.
+        early_vote, early_distortion: stop comparing once a candidate votes below ``-early_vote``
+            with a distortion below ``early_distortion`` and the next candidate's consistency
+            score exceeds ``compare_ratio`` times the first's.
+        compare_ratio: see ``early_vote``; 0 stops at the first clear reflection, inf compares all.
+        n_samples: vertices the refinement fits on (farthest-point samples).
+        step_refine: smallest basis growth per step of the final upsampling.
+        n_iter_all: final upsampling iterations fitted against every vertex (0: samples only).
+        n_local: the dense vertex map searches each vertex's image among this many vertices near
+            the image of its sample (``maps.TwoLevelSearch``); 0: among all vertices.
+        n_verify: samples of the final verification.
+        min_score: smallest confidence ``exp(-distortion^2)`` of a reported reflection.
+        max_vote: a reported reflection's orientation vote is below ``-max_vote``.
+        max_worst: and no sample's mean distortion exceeds this (a map right on most of the shape
+            but wrong on one part is no symmetry).
+        max_descriptor_gap: and the map changes the descriptors by less than this
+            (``descriptor_gap``).
+        w_guide: weight of the orientation guide in the second selection, run only where the first
+            one verifies nothing (0: no second selection).
+        verify: the final distortion measure: ``'involution'`` (``involution_distortion``, read off
+            the samples' own distance fields) or ``'images'`` (``isometry_score``, one heat solve
+            per sample image).
+    """
+
+    n_extrema: int = 12
+    nms_radius: float = 2.0
+    n_candidates: int = 8
+    k_select: int = 30
+    block_refine: bool = False
+    prune_k: int = 14
+    prune_vote: float = 0.3
+    select_vote: float = 0.4
+    n_select_verify: int = 16
+    early_vote: float = 0.6
+    early_distortion: float = 0.25
+    compare_ratio: float = 2.0
+    n_samples: int = 2000
+    step_refine: int = 12
+    n_iter_all: int = 0
+    n_local: int = 64
+    n_verify: int = 32
+    min_score: float = 0.5
+    max_vote: float = 0.2
+    max_worst: float = 1.5
+    max_descriptor_gap: float = 0.4
+    w_guide: float = 1.0
+    verify: str = "involution"
+
+    def __post_init__(self):
+        if self.verify not in ("involution", "images"):
+            raise ValueError(f"verify must be 'involution' or 'images', got {self.verify!r}")
+
+
+@dataclass(frozen=True)
+class GroupConfig:
+    """Knobs of the group path (ALGORITHM §5); the stages are in :mod:`.group_path`.
+
+    Attributes:
+        refine: ``'zoomout'`` (band-by-band upsampling, kept block-orthogonal) or ``'icp'``
+            (fixed-size spectral ICP in the coarse basis).
+        n_eigen: the group path cuts the spectrum at the band end nearest this many eigenpairs
+            (its descriptors, and so the candidate pruning, then do not depend on the spectrum
+            size it is given).
+        n_points: most invariant points.
+        n_sources: source tuples paired with every target tuple.
+        delta: geodesic ratio threshold of the pruning.
+        desc_tol: two points may correspond when their descriptor distance is at most this share
+            of the median distance over all pairs of points.
+        max_candidates: most candidates kept for clustering (those whose Procrustes fit is best).
+        n_icp: batched spectral ICP steps applied to every candidate before clustering (0: none).
+        bandwidth: mean-shift kernel width (absolute Frobenius distance of the coarse matrices).
+        max_modes: most clusters refined.
+        n_samples: sample vertices for refinement and verification.
+        max_distortion: an element whose geodesic distortion exceeds this is rejected.
+    """
+
+    refine: str = "zoomout"
+    n_eigen: int = 60
+    n_points: int = 40
+    n_sources: int = 3
+    delta: float = 0.9
+    desc_tol: float = 0.6
+    max_candidates: int = 400
+    n_icp: int = 3
+    bandwidth: float = 0.6
+    max_modes: int = 64
+    n_samples: int = 1000
+    max_distortion: float = 0.25
+
+    def __post_init__(self):
+        if self.refine not in ("zoomout", "icp"):
+            raise ValueError(f"refine must be 'zoomout' or 'icp', got {self.refine!r}")
+
+
+# The keywords ``detect_symmetries`` took before ``config=`` existed, and the reflection-path field
+# each one sets (``n_refine`` was the name of ``n_candidates`` there).
+LEGACY_REFLECTION_KEYWORDS = {"n_samples": "n_samples", "block_refine": "block_refine",
+                              "n_extrema": "n_extrema", "nms_radius": "nms_radius",
+                              "min_score": "min_score", "n_refine": "n_candidates"}
+
+
+@dataclass(frozen=True)
+class DetectConfig:
+    """Knobs of :func:`~symtorch.detect.detect_symmetries`: basis sizes, the policy, each path's config.
+
+    Attributes:
+        k: target size of the coarse basis the candidates are solved in (snapped to a band end),
+            or several sizes (the reflection path tries each per candidate).
+        k_refine: target size of the refined basis; the result's matrices live in it, whichever
+            path found them.
+        group_k: the group path's coarse basis is ``max(k, group_k)``.
+        group_k_refine: the group path refines its elements to ``min(k_refine, group_k_refine)``
+            (one refinement per element: the cost grows with the group); their matrices are then
+            expressed in the ``k_refine`` basis from their vertex maps.
+        group_tol: where the reflection path finds at least three involutive permutations of its
+            extrema with consistency scores below this (a C2v or D2h shape, whose spectrum is
+            simple), the group path runs too; 0 disables that second opinion.
+        reflection: the reflection path's knobs.
+        group: the group path's knobs.
+    """
+
+    k: int | tuple[int, ...] = 6
+    k_refine: int = 100
+    group_k: int = 20
+    group_k_refine: int = 40
+    group_tol: float = 0.06
+    reflection: ReflectionConfig = field(default_factory=ReflectionConfig)
+    group: GroupConfig = field(default_factory=GroupConfig)
+
+    @property
+    def group_basis(self) -> tuple[int, int]:
+        """(coarse, refined) target sizes of the group path."""
+        k = max(self.k) if isinstance(self.k, (tuple, list)) else self.k
+        return max(k, self.group_k), min(self.k_refine, self.group_k_refine)
+
+    def with_keywords(self, **keywords) -> DetectConfig:
+        """This config with keyword shortcuts applied: any field of DetectConfig, or one of the
+        legacy reflection keywords (``n_samples``, ``block_refine``, ``n_extrema``,
+        ``nms_radius``, ``min_score``, ``n_refine``).
+
+        Raises:
+            TypeError: an unknown keyword.
+        """
+        own = {f.name for f in fields(self)}
+        top = {k: v for k, v in keywords.items() if k in own}
+        refl = {LEGACY_REFLECTION_KEYWORDS[k]: v for k, v in keywords.items()
+                if k in LEGACY_REFLECTION_KEYWORDS}
+        unknown = sorted(set(keywords) - own - set(LEGACY_REFLECTION_KEYWORDS))
+        if unknown:
+            raise TypeError(f"detect_symmetries() got unexpected keyword(s) {', '.join(unknown)}; "
+                            f"knobs: {', '.join(sorted(own | set(LEGACY_REFLECTION_KEYWORDS)))}")
+        if "n_candidates" in refl:
+            refl["n_candidates"] = max(int(refl["n_candidates"]), 1)
+        out = replace(self, **top)
+        return replace(out, reflection=replace(out.reflection, **refl)) if refl else out

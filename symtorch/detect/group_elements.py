@@ -1,0 +1,239 @@
+"""The group path's elements: refinement, verification, closure and upsampling (ALGORITHM §5 step 5).
+
+Two stages, so that every cluster can be checked cheaply and only the distinct elements pay for the
+exact measure:
+
+- **Coarse** (:class:`CoarseElements`): in the coarse basis and on sample vertices, each candidate
+  is refined (:func:`zoomout`, or fixed-size spectral ICP), screened by the cheap distortion of
+  :meth:`Geometry.distortion_at`, and merged with an element it duplicates; the set is then closed
+  under composition and what closure adds goes through the same screen.
+- **Exact** (:func:`upsample_elements`): each distinct element is grown to the refined basis,
+  every vertex is mapped, and the distortion ``|d(g(s), g(x)) - d(s, x)|`` is measured from 10
+  spread sources ``s`` to the score samples ``x`` (10 heat solves per element).
+
+The cheap screen uses only the distance fields of the invariant points ``P``: the mean over
+``p in P`` and the score samples ``x`` of ``|d(pi(p), g(x)) - d(p, x)| - off(p)`` (clamped at 0),
+plus a quarter of the mean ``off``, where ``pi(p)`` is the point of ``P`` nearest to ``g(p)`` and
+``off(p) = d(g(p), pi(p))``. ``P`` is invariant, so for an exact symmetry ``pi(p) = g(p)`` and this is
+0; the ``off`` discount (triangle inequality) keeps points of ``P`` placed slightly asymmetrically
+(flat extrema) from counting. Distortions are in EPS_KLC units.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from ..geodesics import GeodesicSolver
+from ..groups.algebra import DEFAULT_TOL, _rel_dist, closure
+from ..maps import TwoLevelSearch, p2p_to_fmap
+from ..procrustes import block_procrustes, block_project
+from ..refine import zoomout_symmetry
+from ..sampling import farthest_point_sampling
+from ..spectrum import Spectrum
+from ..units import EPS_KLC
+from .config import GroupConfig
+
+__all__ = ["Geometry", "CoarseElement", "CoarseElements", "Element", "upsample_elements",
+           "batched_icp", "zoomout"]
+
+
+class CoarseElement(NamedTuple):
+    """An element verified in the coarse basis."""
+
+    fmap: Tensor       # [k0, k0]
+    images: Tensor     # [S'] images of the score samples
+    distortion: float  # the cheap screen's distortion
+
+
+class Element(NamedTuple):
+    """An element in the refined basis, measured exactly."""
+
+    fmap: Tensor       # [K, K]
+    p2p: Tensor        # [V]
+    distortion: float  # exact distortion
+
+
+class Geometry:
+    """What verification and refinement need, computed once per shape.
+
+    Attributes:
+        evecs, mass: the basis; verts: [V, 3] unit-area positions (tensor).
+        samples: [S] well-spread sample vertices; score_samples: the first 200 of them.
+        points: [n] the invariant points; dist_points: [n, V] their distance fields.
+    """
+
+    def __init__(self, verts_unit: np.ndarray, spectrum: Spectrum, points: np.ndarray,
+                 dist_points: Tensor, n_samples: int):
+        self.evecs, self.mass = spectrum.evecs, spectrum.mass
+        V = self.evecs.shape[0]
+        self.verts = torch.as_tensor(verts_unit)
+        # farthest points among a regular subset of the vertices (4 per sample): the same spread at
+        # a fraction of the cost of running over every vertex
+        sub = torch.arange(0, V, max(1, V // (4 * n_samples)))
+        self.samples = sub[farthest_point_sampling(self.verts[sub], min(n_samples, len(sub)))]  # [S]
+        self.score_samples = self.samples[: min(200, len(self.samples))]
+        self.points = torch.as_tensor(points)
+        self.dist_points = dist_points  # [n, V]
+        # two-level vertex maps: the map on the samples, carried to every vertex by continuity
+        # (cells: the nearest sample in space; ~2 Voronoi cells of a sample searched per vertex)
+        from scipy.spatial import cKDTree
+
+        _, ns = cKDTree(verts_unit[self.samples.numpy()]).query(verts_unit)
+        c = min(max(2 * V // max(len(self.samples), 1), 12), V)
+        self.search = TwoLevelSearch(verts_unit, self.evecs, self.samples, torch.as_tensor(np.asarray(ns)), c)
+
+    def p2p(self, C: Tensor, at: Tensor | None = None) -> Tensor:
+        """Vertex map of C [k, k] at the vertices ``at`` (default all): ``maps.TwoLevelSearch``."""
+        return self.search(C, at)
+
+    def distortion_at(self, gp: Tensor, gx: Tensor) -> float:
+        """The cheap screen's distortion from the images ``gp`` of the points and ``gx`` of the
+        score samples (see the module docstring)."""
+        D = self.dist_points  # [n, V]
+        pi = D[:, gp].argmin(0)  # [n] point nearest to g(p)
+        off = D[pi, gp]  # [n] how far g(p) lands from the point of P standing for it
+        # |d(pi(p), g(x)) - d(g(p), g(x))| <= off(p) (triangle inequality): discount that much, so
+        # that points of P placed slightly asymmetrically (flat extrema) do not count as distortion
+        dev = ((D[pi][:, gx] - D[:, self.score_samples]).abs() - off[:, None]).clamp_min(0).mean()
+        return float((dev + 0.25 * off.mean()) / EPS_KLC)
+
+
+def zoomout(geo: Geometry, C0: Tensor, bands: list[range], k_final: int, step: int = 4,
+            n_iter_end: int = 3) -> Tensor:
+    """Block-orthogonal ZoomOut (``refine.zoomout_symmetry``) from samples to samples."""
+    return zoomout_symmetry(C0, geo.evecs, geo.mass, bands, k_final, step=step, samples=geo.samples,
+                            targets=geo.samples, block=True, n_iter_end=n_iter_end)
+
+
+def batched_icp(C: Tensor, E_src: Tensor, E_tgt: Tensor, bands: list[range], n_iter: int = 2,
+                chunk: int = 128) -> Tensor:
+    """A few spectral ICP steps on many candidates at once.
+
+    Each step maps the source rows to their nearest target rows (``E_src @ C``), then solves the block
+    Procrustes ``E_src @ C ≈ E_tgt[nn]`` (transposed: ``C.T @ E_src.T ≈ E_tgt[nn].T``). Candidates of
+    one symmetry found from different point tuples then agree closely, so that mean shift merges them.
+
+    Args:
+        C: [B, k, k]; E_src: [S, k] rows of sample vertices; E_tgt: [T, k] rows of target vertices
+            (a superset of the sources' images); bands: covering ``0..k-1``.
+
+    Returns:
+        [B, k, k] block-orthogonal.
+    """
+    out = []
+    Et = E_tgt.float()
+    sq = Et.square().sum(-1)
+    for Cb in C.split(chunk):
+        for _ in range(n_iter):
+            Q = (E_src @ Cb).float()  # [b, S, k]
+            nn = (sq[None, None] - 2 * Q @ Et.mT).argmin(-1)  # [b, S]
+            Cb = block_procrustes(E_src.mT.expand(len(Cb), -1, -1), E_tgt[nn].mT, bands).mT
+        out.append(Cb)
+    return torch.cat(out)
+
+
+class CoarseElements:
+    """The elements verified in the coarse basis, identity first; :meth:`add` refines, screens and
+    deduplicates a candidate, :meth:`close` adds what composition implies.
+
+    Attributes:
+        elements: the accepted :class:`CoarseElement` s.
+        trace: (distortion, index of the element it duplicates or -1) per candidate added.
+        rejected: distortions of the candidates rejected by the screen.
+    """
+
+    def __init__(self, geo: Geometry, bands0: list[range], k0: int, cfg: GroupConfig):
+        self.geo, self.bands0, self.k0, self.cfg = geo, bands0, k0, cfg
+        eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
+        self.elements = [CoarseElement(eye0, geo.score_samples.clone(), 0.0)]
+        self.trace: list[tuple[float, int]] = []
+        self.rejected: list[float] = []
+
+    def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
+        """An accepted element with the same images (mean gap < eps/2) or matrix (< DEFAULT_TOL)."""
+        x = self.geo.verts
+        imgs = torch.stack([e.images for e in self.elements])  # [G, S']
+        gap = (x[imgs] - x[images][None]).norm(dim=-1).mean(-1)  # [G]
+        j = int(gap.argmin())
+        if float(gap[j]) < 0.5 * EPS_KLC:
+            return j
+        # maps can differ where an element is ill-pinned; the matrices then still agree
+        d = _rel_dist(C0[None], torch.stack([e.fmap for e in self.elements]))[0]
+        return int(d.argmin()) if float(d.min()) < DEFAULT_TOL else -1
+
+    def add(self, C0: Tensor) -> bool:
+        """Refine a coarse candidate, screen it, and keep it unless it duplicates an element
+        (where it is better than the element it duplicates, it takes that element's place)."""
+        geo = self.geo
+        if self.cfg.refine == "icp":  # paper §4.1 step 3: fixed-size spectral ICP on the samples
+            E_s = geo.evecs[geo.samples, :self.k0]
+            C0 = batched_icp(C0[None], E_s, E_s, self.bands0, n_iter=10)[0]
+        else:
+            C0 = zoomout(geo, C0, self.bands0, self.k0)
+        n = len(geo.points)
+        img = geo.p2p(C0, torch.cat([geo.points, geo.score_samples]))
+        dst = geo.distortion_at(img[:n], img[n:])
+        img = img[n:]
+        rejected = dst > self.cfg.max_distortion
+        j = -1 if rejected else self.duplicate_of(img, C0)
+        self.trace.append((round(dst, 3), j))
+        if rejected:
+            self.rejected.append(round(dst, 3))
+            return False
+        if j >= 0:
+            if dst < self.elements[j].distortion:
+                self.elements[j] = CoarseElement(C0, img, dst)
+            return False
+        self.elements.append(CoarseElement(C0, img, dst))
+        return True
+
+    def close(self, rounds: int = 3) -> None:
+        """Add what composition implies (``groups.closure``), refined and screened like the rest."""
+        for _ in range(rounds):
+            cl = closure(torch.stack([e.fmap for e in self.elements]), tol=DEFAULT_TOL,
+                         max_order=2 * len(self.elements) + 8)
+            new = cl.fmaps[cl.added]
+            # every product is tried (a list, not a short-circuiting generator)
+            if len(new) == 0 or not any([self.add(block_project(Cn, self.bands0)) for Cn in new]):
+                break
+
+
+def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
+                      bands: list[range], k0: int, kf: int, max_distortion: float) -> tuple[list[Element], list[float]]:
+    """Grow the coarse elements to ``kf``, map every vertex and measure each exactly.
+
+    An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
+    map (its matrix in the refined basis then comes from that map). Elements still above it are
+    dropped, the identity never.
+
+    Returns:
+        (the elements kept, identity first; the rejected elements' distortions).
+    """
+    src = geo.samples[:10].numpy()
+    D_src = torch.as_tensor(np.asarray(solver.distances_from(src)))[:, geo.score_samples]
+
+    def exact_distortion(p2p: Tensor) -> float:
+        g = p2p.numpy()
+        D_img = torch.as_tensor(np.asarray(solver.distances_from(g[src])))[:, p2p[geo.score_samples]]
+        return float((D_img - D_src).abs().mean() / EPS_KLC)
+
+    V = geo.evecs.shape[0]
+    eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
+    final: list[Element] = []
+    for e in coarse:
+        if e.distortion == 0.0 and float((e.fmap - eye0).abs().max()) == 0.0:
+            Cf, p2p = torch.eye(kf, dtype=geo.evecs.dtype), torch.arange(V)
+        else:
+            Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
+            p2p = geo.p2p(Cf)
+        final.append(Element(Cf, p2p, exact_distortion(p2p) if len(final) else 0.0))
+    for i, e in enumerate(final):
+        if e.distortion > max_distortion and coarse[i].distortion <= max_distortion and kf != k0:
+            p2p = geo.p2p(coarse[i].fmap)
+            Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
+            final[i] = Element(Cf, p2p, exact_distortion(p2p))
+    rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
+    return [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0], rejected

@@ -1,0 +1,58 @@
+"""symtorch.detect.verification: geodesic distortion, orientation vote, descriptor gap."""
+import math
+
+import pytest
+import torch
+
+from symtorch import laplacian_spectrum
+from symtorch.detect.verification import orientation_vote, vertex_normals
+from symtorch.geodesics import GeodesicSolver
+from symtorch.sampling import farthest_point_sampling
+
+
+def test_descriptor_gap_is_zero_for_a_symmetry_and_large_for_a_scramble(mirror3):
+    from symtorch.descriptors import descriptors
+    from symtorch.detect.verification import descriptor_gap
+
+    v, f, mirror = mirror3
+    s = laplacian_spectrum(v, f, k=40)
+    desc = descriptors(s.evals, s.evecs)
+    assert descriptor_gap(desc, torch.arange(len(v)), s.mass) == 0.0
+    assert descriptor_gap(desc, mirror, s.mass) < 1e-6
+    # pointwise, a partial swap keeps descriptors too: that is the geodesic distortion's job
+    x = v[:, 0] - v[:, 0].mean()
+    assert descriptor_gap(desc, torch.where(x > 0, mirror, torch.arange(len(v))), s.mass) < 1e-6
+    # vertices sent to unrelated places do not
+    assert descriptor_gap(desc, torch.roll(torch.arange(len(v)), len(v) // 3), s.mass) > 0.4
+
+
+def test_orientation_vote_separates_reflection_from_identity(mirror3):
+    v, f, mirror = mirror3
+    vn = vertex_normals(v, f)
+    S = farthest_point_sampling(v, 200)
+    assert float(orientation_vote(torch.arange(len(v)), v, vn, S)) == pytest.approx(1.0)
+    assert float(orientation_vote(mirror, v, vn, S)) < -0.9
+    batch = torch.stack([torch.arange(len(v)), mirror])
+    votes = orientation_vote(batch, v, vn, S)
+    assert votes.shape == (2,) and votes[0] > 0.9 and votes[1] < -0.9
+
+
+def test_involution_distortion_needs_no_solve_and_tracks_the_isometry_score(mirror3):
+    from symtorch.detect.verification import involution_distortion, isometry_score
+
+    v, f, mirror = mirror3
+    v = v / math.sqrt(GeodesicSolver(v, f).area)  # unit area: distortions in KLC units
+    solver = GeodesicSolver(v, f)
+    S = farthest_point_sampling(v, 24)
+    fields = solver.distances_from(S)  # [24, V]: the only solves
+    score, d_mirror, worst = involution_distortion(fields, S, mirror)
+    assert d_mirror < 0.15 and worst < 0.3  # the heat method's own asymmetry, not the map's
+    assert score == pytest.approx(math.exp(-d_mirror ** 2))
+    # half the shape mirrored, the other half kept: no isometric involution
+    x = v[:, 0] - v[:, 0].mean()
+    half = torch.where(x > 0, mirror, torch.arange(len(v)))
+    d_half = involution_distortion(fields, S, half).distortion
+    d_half_images = isometry_score(solver, half, S).distortion
+    assert d_half > 0.5 and d_half == pytest.approx(d_half_images, rel=0.5)
+    # a map that moves every sample onto one point is no involution either
+    assert involution_distortion(fields, S, torch.zeros(len(v), dtype=torch.long))[1] > 0.5
