@@ -364,6 +364,7 @@ def _in_namespace(script: str) -> subprocess.CompletedProcess:
     return proc
 
 
+@pytest.mark.multiprocess
 def test_read_only_and_full_output_folders_name_the_cause(tmp_path):
     probe = _in_namespace(f"mount -t tmpfs tmpfs {tmp_path}")
     if probe.returncode != 0:

@@ -54,6 +54,7 @@ def test_setting_and_environment(monkeypatch):
         set_num_threads(0)
 
 
+@pytest.mark.multiprocess
 def test_busy_processes_take_their_cores():
     """One CPU-bound process per core: the solves are left one thread (they swung tenfold)."""
     cores = len(os.sched_getaffinity(0))

@@ -33,6 +33,7 @@ from ..maps import p2p_to_fmap
 from ..procrustes import block_project
 from ..sampling import count_components
 from ..spectrum import Spectrum, band_boundary, laplacian_spectrum, solved_bands
+from ..threads import bounded_threads
 from .config import DetectConfig
 from .result import Diagnostics, SymmetryResult
 
@@ -56,6 +57,7 @@ class _Timer:
         self.t = now
 
 
+@bounded_threads  # the torch and BLAS pools capped at the free cores for the whole detection
 def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectrum | None = None,
                       device: torch.device | str | None = None, config: DetectConfig | None = None,
                       **knobs) -> SymmetryResult:
