@@ -156,3 +156,18 @@ def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, 
     res = detect_symmetries(v, f)
     assert res.group.name == "C2v" and len(passed) == 2  # both paths ran
     assert len(made) == 1 and passed[0] is made[0] and passed[1] is made[0]
+
+
+def test_tiny_and_huge_coordinates_are_detected_like_the_unit_mesh():
+    # areas of 1e-150 coordinates underflow float64: the detector rescales by a power of two
+    import numpy as np
+
+    from symtorch import detect_symmetries, shapes
+
+    verts, faces = shapes.mirror_blob()
+    ref = detect_symmetries(np.asarray(verts), faces)
+    for scale in (1e-150, 1e150):
+        res = detect_symmetries(np.asarray(verts) * scale, faces)
+        assert [s.kind for s in res.symmetries] == [s.kind for s in ref.symmetries] == \
+            ["identity", "reflection"]
+        assert (res.p2ps == ref.p2ps).all()

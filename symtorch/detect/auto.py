@@ -148,6 +148,12 @@ def _shape_inputs(shape, faces):
     if faces is None:
         raise ValueError("symmetry detection needs a triangle mesh; got a point cloud (faces=None)")
     verts, faces = check_mesh(shape, faces)
+    from ..spectrum import _exact_rescale
+
+    c = _exact_rescale(np.asarray(verts.detach().cpu() if torch.is_tensor(verts) else verts,
+                                  dtype=np.float64))
+    if c != 1.0:  # coordinates far from 1 (areas of 1e-150 underflow): a power of two is exact and
+        verts = verts * c  # changes no map; the geometry code (geodesics, tolerances) needs it
     n_parts = count_components(faces, len(verts))
     if n_parts > 1:
         raise ValueError(f"mesh has {n_parts} connected components; symmetry detection needs one "
