@@ -40,7 +40,6 @@ import argparse
 import json
 import logging
 import math
-import re
 import sys
 import time
 import warnings
@@ -53,6 +52,8 @@ from symtorch.data import (Compose, ComputeDescriptors, ComputeOrientationOperat
                            DetectSymmetries, MeshDataset, NormalizeArea, RandomSymmetry,
                            SymmetryFromCorrespondence,
                            corr_to_fmap)
+from symtorch.data.layouts import class_key
+from symtorch.data.transforms import _haar_orthogonal
 from symtorch.fmap_solve import regularized_fmap
 from symtorch.losses import fmap_loss, symmetry_equivariance_loss
 from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
@@ -78,11 +79,6 @@ def dataset_root(name: str, scape_r: Path) -> Path:
     return root
 
 
-def shape_class(name: str) -> str:
-    """TOSCA class of a shape name (``cat10`` -> ``cat``); one class for the other datasets."""
-    return re.sub(r"\d+$", "", name)
-
-
 def split_shapes(names: list[str], dataset: str, seed: int) -> tuple[list[int], list[int]]:
     """(train, test) indices of shapes, the field's split where it has one."""
     n = len(names)
@@ -92,8 +88,8 @@ def split_shapes(names: list[str], dataset: str, seed: int) -> tuple[list[int], 
         return list(range(n - 3)), list(range(n - 3, n))
     g = torch.Generator().manual_seed(seed)
     train, test = [], []
-    for cls in sorted({shape_class(s) for s in names}):
-        idx = [i for i, s in enumerate(names) if shape_class(s) == cls]
+    for cls in sorted({class_key(s) for s in names}):
+        idx = [i for i, s in enumerate(names) if class_key(s) == cls]
         idx = [idx[j] for j in torch.randperm(len(idx), generator=g).tolist()]
         k = max(1, round(0.25 * len(idx))) if len(idx) > 2 else 1
         test += idx[:k]
@@ -103,7 +99,7 @@ def split_shapes(names: list[str], dataset: str, seed: int) -> tuple[list[int], 
 
 def pairs_of(indices: list[int], names: list[str], within_class: bool) -> list[tuple[int, int]]:
     return [(i, j) for i in indices for j in indices
-            if i != j and (not within_class or shape_class(names[i]) == shape_class(names[j]))]
+            if i != j and (not within_class or class_key(names[i]) == class_key(names[j]))]
 
 
 def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth") -> Compose:
@@ -120,9 +116,8 @@ def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth") -> Compo
 
 # ------------------------------------------------------------------------------------------ model
 def random_rotation(generator: torch.Generator) -> torch.Tensor:
-    A = torch.randn(3, 3, generator=generator, dtype=torch.float64)
-    Q, R = torch.linalg.qr(A)
-    Q = Q * torch.sign(torch.diagonal(R))[None, :]
+    """[3, 3] uniformly random rotation (Haar on O(3), the reflections negated)."""
+    Q = _haar_orthogonal(3, generator)
     return Q if torch.det(Q) > 0 else -Q
 
 
@@ -268,7 +263,7 @@ def main() -> None:
         if within:  # keep every class represented
             by_cls: dict[str, list[int]] = {}
             for i in train_idx:
-                by_cls.setdefault(shape_class(names[i]), []).append(i)
+                by_cls.setdefault(class_key(names[i]), []).append(i)
             train_idx = sorted(i for idx in by_cls.values()
                                for i in [idx[j] for j in torch.randperm(len(idx), generator=g).tolist()]
                                [:max(1, math.ceil(len(idx) / 4))])

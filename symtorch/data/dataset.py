@@ -18,14 +18,13 @@ from torch import Tensor
 from torch.utils.data import Dataset
 
 from ..io import atomic_write, read_mesh
-from .layouts import class_key, corres_dir, find_layout, read_geodesic_matrix
+from .layouts import MESH_SUFFIXES, class_key, corres_dir, find_layout, read_geodesic_matrix
 
 log = logging.getLogger(__name__)
 
 __all__ = ["MeshDataset", "PairDataset", "read_sample", "process_file", "corr_to_fmap",
            "default_cache_dir", "PAIR_MODES"]
 
-MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl")
 _CACHE_FORMAT = 2  # .pt files hold {"key", "mesh", "sample"}; meta.json entries carry checksums
 _GROUND_TRUTH = (None, "template", "vts")
 #: The pair sets :class:`PairDataset` builds by name.

@@ -32,7 +32,8 @@ from torch import Tensor
 
 __all__ = ["Layout", "find_layout", "corres_dir", "dist_dir", "read_geodesic_matrix", "class_key"]
 
-_MESH_SUFFIXES = (".off", ".obj", ".ply")
+#: The mesh files the datasets read (``symtorch.io.read_mesh`` formats).
+MESH_SUFFIXES = (".off", ".obj", ".ply", ".stl")
 
 
 class Layout(NamedTuple):
@@ -70,7 +71,7 @@ def dist_dir(mesh_folder: str | os.PathLike) -> Path | None:
 
 
 def _has_meshes(folder: Path) -> bool:
-    return folder.is_dir() and any(p.suffix.lower() in _MESH_SUFFIXES for p in folder.iterdir())
+    return folder.is_dir() and any(p.suffix.lower() in MESH_SUFFIXES for p in folder.iterdir())
 
 
 def find_layout(root: str | os.PathLike) -> Layout:
