@@ -115,10 +115,9 @@ def run_detector(verts, faces, label: str, **kw):
                        "remove them first (symmetry maps are reported per vertex)")
     from ..spectrum import _exact_rescale
     c = _exact_rescale(np.asarray(verts, dtype=np.float64))
-    if c != 1.0:  # exact (a power of two) and harmless to symmetries; the geometry code needs it
+    if c != 1.0:  # detect_symmetries applies this exact power of two itself; say so here
         _progress(f"{label}: coordinates up to {np.abs(verts).max():.3g}; scaled by 2^"
                   f"{int(np.log2(c))} for the detector")
-        verts = np.asarray(verts, dtype=np.float64) * c
     try:
         return detect_symmetries(verts, faces, **kw)
     except Exception as e:  # noqa: BLE001 -- a detector failure on odd input: one line, -v traceback
