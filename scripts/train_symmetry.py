@@ -58,6 +58,8 @@ from symtorch.fmap_solve import regularized_fmap
 from symtorch.losses import fmap_loss, symmetry_equivariance_loss
 from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
+from symtorch.data.symmetry import mirror_shape
+from symtorch.flips import resolve_symmetry_parts
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 
@@ -196,25 +198,42 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
 
 
 # ------------------------------------------------------------------------------------- evaluation
+#: Post-processes scored for every run: none, the global orientation vote, the part-wise one, mirror
+#: test-time averaging, and mirror averaging followed by the part-wise vote.
+POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts")
+
+
 @torch.no_grad()
-def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], args, evaluator):
-    """Plain and resolved scores of the model's maps on the held-out pairs."""
+def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], args, evaluator) -> dict:
+    """Scores of the model's maps on the held-out pairs, plain and after each post-process."""
     model.eval()
     k = args.k
-    coefs = {i: model.coefs(data[i]) for i in {p for pair in pairs for p in pair}}
-    plain, resolved = [], []
+    ids = {p for pair in pairs for p in pair}
+    coefs = {i: model.coefs(data[i]) for i in ids}
+    mirrored = {i: model.coefs(mirror_shape(data[i])) for i in ids}
+    scores: dict[str, list] = {post: [] for post in POSTS}
+
+    def p2p_of(C, x, y):
+        return fmap_to_p2p(C.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
+
+    def parts(p2p, x, y):  # flipped parts sent through the target's reflection
+        return resolve_symmetry_parts(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
+                                      y["faces"], x["sym_p2p"][1]).p2p
+
     for i, j in pairs:
         x, y = data[i], data[j]
-        C = model.fmap(coefs[i], coefs[j], x, y)
-        p2p = fmap_to_p2p(C.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
-        plain.append(evaluator.score(p2p, x, y))
-        # the point-map form: the orientation vote of the mapped triangles, robust to maps that are
-        # flipped on part of the shape (the functional-map form is ``resolve_symmetry``)
-        r = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
-                                 y["faces"], y["sym_p2p"])
-        resolved.append(evaluator.score(r.p2p, x, y))
+        p2p = p2p_of(model.fmap(coefs[i], coefs[j], x, y), x, y)
+        # both shapes mirrored keep their vertex-id correspondence (symtorch.tta)
+        p2p_tta = p2p_of(0.5 * (model.fmap(coefs[i], coefs[j], x, y)
+                                + model.fmap(mirrored[i], mirrored[j], x, y)), x, y)
+        # the global choice: the orientation vote of the mapped triangles over the whole shape
+        glob = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
+                                    y["faces"], y["sym_p2p"]).p2p
+        for post, m in (("", p2p), ("+resolve", glob), ("+parts", parts(p2p, x, y)),
+                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, x, y))):
+            scores[post].append(evaluator.score(m, x, y))
     model.train()
-    return summarize_pairs(plain), summarize_pairs(resolved)
+    return {post: summarize_pairs(v) for post, v in scores.items()}
 
 
 def main() -> None:
@@ -291,8 +310,8 @@ def main() -> None:
             saved.parent.mkdir(parents=True, exist_ok=True)
             torch.save(model.state_dict(), saved)
         t_train = time.perf_counter() - t1
-        plain, resolved = evaluate(model, data, test_pairs, args, evaluator)
-        for post, res in (("", plain), ("+resolve", resolved)):
+        results = evaluate(model, data, test_pairs, args, evaluator)
+        for post, res in results.items():
             row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run + post,
                        symmetries=args.symmetries,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
@@ -307,7 +326,7 @@ def main() -> None:
                   flush=True)
         if args.json is not None:
             with open(args.json, "a") as fh:
-                for row in rows[-2:]:
+                for row in rows[-len(results):]:
                     fh.write(json.dumps(row) + "\n")
 
 

@@ -26,7 +26,8 @@ from torch import Tensor
 _CHUNK = 2 ** 24  # elements of the largest per-face intermediate of orientation_operators
 
 __all__ = ["FaceGeometry", "face_geometry", "face_gradients", "faces_to_vertices",
-           "orientation_operators", "orientation_residual", "orientation_agreement", "resolve_symmetry",
+           "orientation_operators", "orientation_residual", "face_orientation_votes",
+           "orientation_agreement", "resolve_symmetry",
            "resolve_symmetry_p2p", "FmapResolution", "P2PResolution"]
 
 
@@ -287,16 +288,17 @@ def _check_p2p(p2p: Tensor, n_from: int, n_to: int, name: str) -> Tensor:
     return p2p.long()
 
 
-def orientation_agreement(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, verts_y: Tensor,
-                          faces_y: Tensor, max_stretch: float = 3.0) -> Tensor:
-    """Area-weighted orientation vote of point maps between two shapes, in [-1, 1].
+def face_orientation_votes(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, verts_y: Tensor,
+                           faces_y: Tensor, max_stretch: float = 3.0) -> tuple[Tensor, Tensor]:
+    """Each face of y votes whether a point map keeps its winding on x.
 
-    Each face ``(a, b, c)`` of y is sent to the triangle ``verts_x[p2p_yx[[a, b, c]]]`` on x; it votes
+    The face ``(a, b, c)`` of y is sent to the triangle ``verts_x[p2p_yx[[a, b, c]]]`` on x; it votes
     +1 when the image's normal (right-hand rule on that order) agrees with x's vertex normals at the
-    three images (their sum), -1 otherwise, weighted by its area on y. Faces whose image collapses
-    (a repeated vertex, a numerically flat triangle) or is not local (an image edge longer than
-    ``max_stretch`` times the face's longest edge, in units where both shapes have the same area)
-    do not vote. Only local quantities enter, so non-rigid (intrinsic) maps are scored correctly.
+    three images (their sum), -1 otherwise. Faces whose image collapses (a repeated vertex, a
+    numerically flat triangle) or is not local (an image edge longer than ``max_stretch`` times the
+    face's longest edge, in units where both shapes have the same area) get weight 0; the others
+    weigh their area on y. Only local quantities enter, so non-rigid (intrinsic) maps are scored
+    correctly.
 
     Args:
         p2p_yx: [..., V_y] long, image on x of each vertex of y.
@@ -305,8 +307,8 @@ def orientation_agreement(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, vert
         max_stretch: locality bound.
 
     Returns:
-        [...] votes in the dtype of ``verts_x``: +1 orientation-preserving, -1 reversing (0 where
-        no face could vote). Not differentiable.
+        (vote [..., F_y] in {-1, 0, 1}, weight [..., F_y]) in the dtype of ``verts_x``. Not
+        differentiable.
     """
     faces_x = _check_mesh(verts_x, faces_x, "_x")
     faces_y = _check_mesh(verts_y, faces_y, "_y")
@@ -326,7 +328,25 @@ def orientation_agreement(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, vert
     distinct = (img != img.roll(1, -1)).all(-1)
     # 1e-12: a numerically flat image triangle has no orientation
     valid = distinct & (edge_img <= max_stretch * edge_y) & (n_img.norm(dim=-1) > 1e-12 * edge_y.square())
-    w = gy.areas.to(vote) * valid
+    return vote, gy.areas.to(vote) * valid
+
+
+def orientation_agreement(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, verts_y: Tensor,
+                          faces_y: Tensor, max_stretch: float = 3.0) -> Tensor:
+    """Area-weighted orientation vote of point maps between two shapes, in [-1, 1]: the mean of
+    :func:`face_orientation_votes` over the faces of y that vote.
+
+    Args:
+        p2p_yx: [..., V_y] long, image on x of each vertex of y.
+        verts_x: [V_x, 3]; faces_x: [F_x, 3] long, consistently oriented.
+        verts_y: [V_y, 3]; faces_y: [F_y, 3] long, consistently oriented.
+        max_stretch: locality bound.
+
+    Returns:
+        [...] votes in the dtype of ``verts_x``: +1 orientation-preserving, -1 reversing (0 where
+        no face could vote). Not differentiable.
+    """
+    vote, w = face_orientation_votes(p2p_yx, verts_x, faces_x, verts_y, faces_y, max_stretch)
     return (w * vote).sum(-1) / w.sum(-1).clamp_min(torch.finfo(w.dtype).tiny)
 
 
