@@ -1,6 +1,7 @@
 """Evaluate reflection detection on a whole benchmark (ALGORITHM §6) and print a table.
 
     python scripts/evaluate.py --dataset SCAPE [--limit N] [--method symtorch|pyfm] [--k-refine K] [--out results.csv]
+    python scripts/evaluate.py --dataset SCAPE --point-cloud [--subsample 5000 --seed 0] [--cloud-min-cos none]
 
 Per mesh: name, V, kind of the scored symmetry, correspondence rate (share of ground-truth points
 with geodesic error below sqrt(area/(20 pi))), normalised mean error (mean / sqrt(area), ×1e-3),
@@ -16,6 +17,11 @@ the two vases have none and are skipped).
 For ``--method symtorch`` the scored symmetry is the first reflection of
 ``symtorch.detect_symmetries(verts, faces).symmetries``, else the first non-identity one, else the
 identity. ``--method pyfm`` runs ``baseline_pyfm.pyfm_reflection`` (pyFM + orientation term + ZoomOut).
+
+``--point-cloud``: the detector gets the mesh's vertices alone (``detect_symmetries(verts)``: the
+point-cloud Laplacian and heat method); ``--subsample N`` (implies it) a seeded random N of them
+(``--seed``). The map is scored on the mesh as always: each mesh vertex goes where the map sends its
+nearest sample (Euclidean), so the error includes the sampling's. ``V`` is then the points detected on.
 """
 from __future__ import annotations
 
@@ -51,12 +57,14 @@ def pick_symmetry(result):
     return None
 
 
-def run_symtorch(verts: np.ndarray, faces: np.ndarray, mode: str = "auto",
-                 k_refine: int | None = None) -> tuple[np.ndarray, str]:
+def run_symtorch(verts: np.ndarray, faces: np.ndarray | None, mode: str = "auto",
+                 k_refine: int | None = None, **knobs) -> tuple[np.ndarray, str]:
     import symtorch
 
     kw = {} if k_refine is None else {"k_refine": k_refine}  # None: the detector's default
-    result = symtorch.detect_symmetries(torch.as_tensor(verts), torch.as_tensor(faces), mode=mode, **kw)
+    kw.update(knobs)
+    result = symtorch.detect_symmetries(torch.as_tensor(verts),
+                                        None if faces is None else torch.as_tensor(faces), mode=mode, **kw)
     sym = pick_symmetry(result)
     if sym is None:
         return np.arange(len(verts)), "none"
@@ -69,18 +77,42 @@ def run_pyfm(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, str]:
     return pyfm_reflection(verts, faces), "reflection"
 
 
+def point_subset(n_verts: int, subsample: int | None, seed: int) -> np.ndarray:
+    """[N] sorted vertex ids the point cloud keeps: all, or a seeded random ``subsample`` of them."""
+    if not subsample or subsample >= n_verts:
+        return np.arange(n_verts)
+    return np.sort(np.random.default_rng(seed).choice(n_verts, subsample, replace=False))
+
+
+def lift_to_mesh(p2p_sub: np.ndarray, keep: np.ndarray, verts: np.ndarray) -> np.ndarray:
+    """[V] a map of the kept points as a map of every mesh vertex: the image of the nearest kept point."""
+    from scipy.spatial import cKDTree
+
+    nearest = cKDTree(verts[keep]).query(verts)[1]
+    return keep[p2p_sub[nearest]]
+
+
 def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,
-                  mode: str = "auto", k_refine: int | None = None) -> dict | None:
+                  mode: str = "auto", k_refine: int | None = None, point_cloud: bool = False,
+                  subsample: int | None = None, seed: int = 0, cloud_knobs: dict | None = None) -> dict | None:
     try:
         gt = load_ground_truth(dataset, name)
     except FileNotFoundError:
         print(f"{name:>12s}  (no ground truth, skipped)", file=sys.stderr)
         return None
     verts, faces = load_mesh(path)
+    keep = point_subset(len(verts), subsample, seed) if point_cloud else np.arange(len(verts))
     t0, c0 = time.perf_counter(), time.process_time()
-    p2p, kind = (run_symtorch(verts, faces, mode, k_refine) if method == "symtorch"
-                 else run_pyfm(verts, faces))
+    if point_cloud:
+        if method != "symtorch":
+            raise SystemExit("--point-cloud needs --method symtorch")
+        p2p, kind = run_symtorch(verts[keep], None, mode, k_refine, **(cloud_knobs or {}))
+    else:
+        p2p, kind = (run_symtorch(verts, faces, mode, k_refine) if method == "symtorch"
+                     else run_pyfm(verts, faces))
     t_method, c_method = time.perf_counter() - t0, time.process_time() - c0
+    if len(keep) < len(verts):
+        p2p = lift_to_mesh(p2p, keep, verts)
 
     t0 = time.perf_counter()
     solver = GeodesicSolver(verts, faces)  # original units: errors and area agree
@@ -92,7 +124,7 @@ def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: i
     else:
         errors = orbit_errors(solver, p2p, gt.orbits, identity=(kind in ("identity", "none")))
     area = solver.area
-    row = dict(name=name, V=len(verts), kind=kind, n_gt=len(errors),
+    row = dict(name=name, V=len(keep), kind=kind, n_gt=len(errors),
                rate=float(klc_rates(errors, area)), nerr=normalized_error(errors, area),
                time=t_method, cpu_time=c_method, eval_time=time.perf_counter() - t0)
     return row
@@ -112,7 +144,19 @@ def main(argv=None) -> int:
     parser.add_argument("--max-pairs", type=int, default=1000,
                         help="dense ground truth: score this many evenly spaced pairs (0: all)")
     parser.add_argument("--out", type=Path, default=None, help="write per-mesh rows as CSV")
+    parser.add_argument("--point-cloud", action="store_true",
+                        help="detect on the mesh's vertices alone, as a point cloud (symtorch method)")
+    parser.add_argument("--subsample", type=int, default=None, metavar="N",
+                        help="detect on a seeded random N of the vertices (implies --point-cloud)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of --subsample")
+    parser.add_argument("--cloud-min-cos", default=None, metavar="X|none",
+                        help="point clouds: DetectConfig.cloud_min_cos (default the detector's; "
+                             "'none': robust_laplacian.point_cloud_laplacian and "
+                             "potpourri3d.PointCloudHeatSolver as they are)")
     args = parser.parse_args(argv)
+    args.point_cloud = args.point_cloud or bool(args.subsample)
+    cloud_knobs = {} if args.cloud_min_cos is None else {
+        "cloud_min_cos": None if args.cloud_min_cos.lower() == "none" else float(args.cloud_min_cos)}
     logging.basicConfig(level=logging.WARNING)
     warnings.filterwarnings("ignore", category=DeprecationWarning)
 
@@ -121,14 +165,17 @@ def main(argv=None) -> int:
         meshes = [m for m in meshes if m[0] in set(args.names)]
     if args.limit is not None:
         meshes = meshes[:args.limit]
-    print(f"{args.dataset}: {len(meshes)} meshes, method={args.method}", file=sys.stderr)
+    cloud = (f", point cloud of {args.subsample} random vertices (seed {args.seed})" if args.subsample
+             else ", point cloud of the vertices" if args.point_cloud else "")
+    cloud += "".join(f", {k}={v}" for k, v in cloud_knobs.items())
+    print(f"{args.dataset}: {len(meshes)} meshes, method={args.method}{cloud}", file=sys.stderr)
     header = f"{'mesh':>12s} {'V':>6s} {'kind':>10s} {'n_gt':>5s} {'rate':>6s} " \
              f"{'err e-3':>8s} {'time s':>7s} {'cpu s':>7s} {'eval s':>7s}"
     print(header)
     rows = []
     for name, path in meshes:
         row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs, args.mode,
-                            args.k_refine)
+                            args.k_refine, args.point_cloud, args.subsample, args.seed, cloud_knobs)
         if row is None:
             continue
         rows.append(row)

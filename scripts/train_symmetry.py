@@ -60,6 +60,7 @@ from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
 from symtorch.flips import resolve_symmetry_parts
+from symtorch.tta import mirror_pair
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 
@@ -169,7 +170,10 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
     for step in range(args.steps):
         i, j = pairs[int(torch.randint(len(pairs), (1,), generator=g))]
         x, y = data[i], data[j]
-        if augment is not None:
+        if augment is not None and args.mirror == "pair":  # both or neither: no symmetry used
+            if bool(torch.rand((), generator=g) < 0.5):
+                x, y = mirror_pair(x, y)
+        elif augment is not None:
             x, y = augment(x), augment(y)
         C = model.fmap(model.coefs(x, g), model.coefs(y, g), x, y)
         C_gt = gt_fmap(x, y, k)
@@ -244,6 +248,10 @@ def main() -> None:
     ap.add_argument("--input", choices=["wks", "xyz"], default="wks")
     ap.add_argument("--symmetries", choices=["ground-truth", "detect"], default="ground-truth",
                     help="the shapes' reflections: from the .sym.vts ground truth, or detected")
+    ap.add_argument("--mirror", choices=["shape", "pair"], default="shape",
+                    help="augment: mirror each shape on its own through its reflection (shape), or "
+                         "both shapes of a pair together, which keeps their correspondence and needs "
+                         "no symmetry (pair: the control)")
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--k", type=int, default=30, help="functional map size")
     ap.add_argument("--k-eig", type=int, default=64, help="eigenpairs for DiffusionNet's diffusion")
@@ -300,6 +308,8 @@ def main() -> None:
     for run in args.runs:
         t1 = time.perf_counter()
         tag = "" if run == "baseline" else f"_{args.symmetries}"  # the baseline uses no symmetry
+        if run != "baseline" and args.mirror == "pair":
+            tag = "_pair"
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"
                                          f"_n{args.steps}.pt")
         if args.reuse and saved.exists():  # evaluate a model trained by an earlier call
@@ -312,14 +322,15 @@ def main() -> None:
         t_train = time.perf_counter() - t1
         results = evaluate(model, data, test_pairs, args, evaluator)
         for post, res in results.items():
-            row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run + post,
+            run_name = run if args.mirror == "shape" or run == "baseline" else f"{run}-pair"
+            row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run_name + post,
                        symmetries=args.symmetries,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
                        flipped=res.flipped_share, up_to_symmetry=res.mean_up_to_symmetry,
                        error_sym=res.mean_sym, train_s=round(t_train, 1), steps=args.steps,
                        seed=args.seed)
             rows.append(row)
-            print(f"{args.dataset:15s} {args.regime:7s} {run + post:17s} error {res.mean:.4f}  "
+            print(f"{args.dataset:15s} {args.regime:7s} {run_name + post:17s} error {res.mean:.4f}  "
                   f"flipped {100 * res.flipped_share:5.1f}%  up to symmetry "
                   f"{res.mean_up_to_symmetry:.4f}  [{len(train_idx)} train shapes, "
                   f"{len(res.pairs)} pairs, train {t_train:.0f} s]",

@@ -1,9 +1,11 @@
 """Shapes built in code with known symmetries, and a quiet detection, shared by the tests."""
+import math
 import warnings
 
+import numpy as np
 import torch
 
-from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
+from symtorch.shapes import _quad_strip, mirror_blob, symmetry_maps, true_symmetries
 
 
 def mirror_mesh(subdivisions: int = 2, dtype=torch.float64):
@@ -29,3 +31,203 @@ def detect_quietly(verts, faces, mode: str = "group"):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return detect_symmetries(verts, faces, mode=mode, k_refine=40)
+
+
+def mirror_cloud(n: int = 600, subdivisions: int = 4, seed: int = 0):
+    """A point cloud sampled on ``mirror_blob``'s surface, mirror-symmetric by construction:
+    (points [2n, 3] float64, mirror permutation [2n]).
+
+    ``n`` area-uniform random points on the half x > 0 and their mirror images: point ``i`` and
+    point ``i + n`` are mirror twins. None of them is a vertex of the mesh.
+    """
+    import numpy as np
+
+    v, f = mirror_blob(subdivisions)
+    rng = np.random.default_rng(seed)
+    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    half = []
+    while sum(len(p) for p in half) < n:
+        fi = rng.choice(len(f), n, p=area / area.sum())
+        r = rng.random((n, 2))
+        s = np.sqrt(r[:, 0])
+        bary = np.stack([1 - s, s * (1 - r[:, 1]), s * r[:, 1]], 1)  # uniform on each triangle
+        p = (v[f[fi]] * bary[:, :, None]).sum(1)
+        half.append(p[p[:, 0] > 1e-3])  # off the plane: no point is its own twin
+    P = np.concatenate(half)[:n]
+    return np.concatenate([P, P * [-1.0, 1.0, 1.0]]), np.r_[np.arange(n) + n, np.arange(n)]
+
+
+# ------------------------------------------------------------- exactly symmetric shapes, wider set
+# Each builder returns (verts [V, 3], faces [F, 3], mats): numpy arrays and the list of the shape's
+# Euclidean symmetries [3, 3] (identity first), whose vertex maps (``symmetry_maps``) are the truth.
+# The triangulations are symmetric under the whole group (quads split about a centre vertex), so
+# each group is exact up to the cotangent Laplacian's rounding; bent versions keep it intrinsically.
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def _mirror(normal) -> np.ndarray:
+    n = np.asarray(normal, dtype=np.float64)
+    n = n / np.linalg.norm(n)
+    return np.eye(3) - 2 * np.outer(n, n)
+
+
+def group_mats(n: int, vertical_mirrors: bool = False, horizontal_mirror: bool = False,
+               half_turns: bool = 0) -> list[np.ndarray]:
+    """C_n, C_nv, D_nh or D_n about z: rotations by 2 pi k / n, mirrors through the planes at angles
+    pi j / n (an arm at angle 0), the top/bottom mirror, half turns about the horizontal axes at
+    angles pi j / n."""
+    mats = [_rot_z(2 * math.pi * k / n) for k in range(n)]
+    if vertical_mirrors:
+        mats += [_mirror([-math.sin(math.pi * j / n), math.cos(math.pi * j / n), 0]) for j in range(n)]
+    if horizontal_mirror:
+        mats += [_mirror([0, 0, 1]) @ m for m in mats]
+    if half_turns:
+        mats += [m @ np.diag([1.0, -1.0, -1.0]) for m in mats[:n]]
+    return mats
+
+
+def outline_prism(poly: np.ndarray, height: float, rings: int = 5, cap_rings: int = 8):
+    """A closed prism over a star-shaped outline ``poly`` [N, 2] (about the origin), with caps made
+    of shrunken copies of the outline (``symtorch.shapes.polar_prism`` for any outline)."""
+    N = len(poly)
+    z = height * (np.arange(rings) / (rings - 1) - 0.5)
+    verts = [np.array([x, y, zr]) for zr in z for x, y in poly]
+    faces: list = []
+    side = np.arange(rings * N).reshape(rings, N)
+    for r in range(rings - 1):
+        _quad_strip(side[r], side[r + 1], verts, faces, flip=0)
+    for zc, outer, top in ((z[-1], side[-1], True), (z[0], side[0], 0)):
+        inner = None
+        for c in range(cap_rings - 1, 0, -1):
+            ring = np.arange(len(verts), len(verts) + N)
+            verts += [np.array([x, y, zc]) for x, y in poly * c / cap_rings]
+            _quad_strip(ring, outer if inner is None else inner, verts, faces, flip=top)
+            inner = ring
+        last = outer if inner is None else inner
+        centre = len(verts)
+        verts.append(np.array([0.0, 0.0, zc]))
+        for k in range(N):
+            a, b = last[k], last[(k + 1) % N]
+            faces.append((centre, a, b) if top else (centre, b, a))
+    return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+
+
+def star_slab(n: int = 5, height: float = 0.25, inner: float = 0.5, segments: int = 6):
+    """D_nh: an n-pointed star prism of radius 1 and the given height (0.25: a quarter of it)."""
+    ang = np.pi * np.arange(2 * n + 1) / n
+    rad = np.where(np.arange(2 * n + 1) % 2 == 0, 1.0, inner)
+    c = np.stack([rad * np.cos(ang), rad * np.sin(ang)], 1)
+    t = np.arange(segments)[:, None] / segments
+    poly = np.concatenate([(1 - t) * c[j] + t * c[j + 1] for j in range(2 * n)])
+    v, f = outline_prism(poly, height, rings=max(3, round(20 * height)), cap_rings=8)
+    return v, f, group_mats(n, vertical_mirrors=True, horizontal_mirror=True)
+
+
+def uv_sphere(n_lon: int, n_lat: int = 48):
+    """Unit sphere on a longitude-latitude grid (quads split about a centre vertex, fans at the
+    poles): its triangulation has the exact symmetry C_{n_lon}v about z."""
+    th = np.pi * np.arange(1, n_lat) / n_lat
+    ph = 2 * np.pi * np.arange(n_lon) / n_lon
+    verts = [np.array([math.sin(a) * math.cos(b), math.sin(a) * math.sin(b), math.cos(a)]) for a in th for b in ph]
+    faces: list = []
+    ring = np.arange(len(verts)).reshape(len(th), n_lon)
+    for r in range(len(th) - 1):
+        _quad_strip(ring[r + 1], ring[r], verts, faces, flip=0)
+    top, bot = len(verts), len(verts) + 1
+    verts += [np.array([0, 0, 1.0]), np.array([0, 0, -1.0])]
+    for k in range(n_lon):
+        faces += [(top, ring[0][k], ring[0][(k + 1) % n_lon]), (bot, ring[-1][(k + 1) % n_lon], ring[-1][k])]
+    v = np.asarray(verts, dtype=np.float64)
+    return v / np.linalg.norm(v, axis=1, keepdims=True), np.asarray(faces, dtype=np.int64)
+
+
+def armed_ball(n: int = 8, chiral: bool = False, elev: float = -20.0, length: float = 0.9,
+               width: float = 0.35, droop: float = 0.6, sweep: float = 0.0):
+    """C_nv (or C_n, ``chiral``): n identical cones drooping from a ball, like the legs of a spider.
+
+    With ``chiral`` each arm carries a bump on one side, which no mirror keeps: the intrinsic group
+    is then the n rotations alone (a sideways bend of the arms would not do: bending is an
+    isometry, and the mirrors would survive intrinsically). ``sweep`` bends every arm sideways by
+    the same near-isometry (a pinwheel): the extrinsic mirrors go, the intrinsic ones stay.
+    """
+    u, f = uv_sphere(8 * n)
+    el = math.radians(elev)
+    r = np.ones(len(u))
+    drop = np.zeros(len(u))
+    for j in range(n):
+        a = 2 * math.pi * j / n
+        d = np.array([math.cos(el) * math.cos(a), math.cos(el) * math.sin(a), math.sin(el)])
+        b = length * np.clip(1 - np.arccos(np.clip(u @ d, -1, 1)) / width, 0, None)  # a cone
+        r += b
+        drop += droop * b ** 2
+        if chiral:
+            a2 = a + 0.7 * width
+            e2 = el + 0.4
+            c = np.array([math.cos(e2) * math.cos(a2), math.cos(e2) * math.sin(a2), math.sin(e2)])
+            r += 0.8 * np.exp(-np.sum((u - c) ** 2, 1) / 0.03)
+    v = u * r[:, None]
+    v[:, 2] -= drop
+    if sweep:
+        turn = sweep * (r - 1) ** 2  # the arm's far end turns about z, the ball stays
+        c, s = np.cos(turn), np.sin(turn)
+        v[:, 0], v[:, 1] = c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]
+    return v, f, group_mats(n, vertical_mirrors=not chiral)
+
+
+def twisted_blades(n: int = 3, twist: float = 1.2):
+    """D_n (rotations only, with half turns about horizontal axes): n blades twisted along z, the
+    same seen from the top and from the bottom (``symtorch.shapes.propeller`` without its hub and
+    its top/bottom tilt), over a longitude-latitude grid (an icosphere has no 4-fold axis)."""
+    u, f = uv_sphere(8 * n)
+    phi, z = np.arctan2(u[:, 1], u[:, 0]), u[:, 2]
+    r = 0.7 + 0.45 * np.exp(3 * (np.cos(n * phi + twist * z * np.pi) - 1))
+    return u * r[:, None], f, group_mats(n, half_turns=True)
+
+
+def subdivided_box(extents=(1.0, 0.6, 0.3), edge: float = 0.06):
+    """D2h: ``trimesh.creation.box`` subdivided to the given edge length, the way a user would (its
+    triangulation is not mirror-symmetric; its metric is, exactly)."""
+    import trimesh
+
+    m = trimesh.creation.box(list(extents))
+    v, f = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, edge)
+    m = trimesh.Trimesh(v, f, process=True)  # merge the vertices the subdivision duplicated
+    mats = [np.diag(s) for s in ([1, 1, 1], [-1, 1, 1], [1, -1, 1], [1, 1, -1], [1, -1, -1], [-1, 1, -1],
+                                 [-1, -1, 1], [-1, -1, -1])]
+    return (np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64),
+            [np.asarray(x, dtype=np.float64) for x in mats])
+
+
+def bend(verts: np.ndarray, radius: float = 4.0) -> np.ndarray:
+    """Wrap the x axis around a cylinder: the extrinsic symmetry goes, the intrinsic one stays (up
+    to the stretch of the shape's thickness)."""
+    x, y, z = verts.T
+    return np.stack([(radius - z) * np.sin(x / radius), y, radius - (radius - z) * np.cos(x / radius)], 1)
+
+
+# (id, builder, group name, order, bend radius or 0): the wider shape set of tests/test_group_shapes.py
+GROUP_SHAPES = [
+    ("star5_thin", lambda: star_slab(5, 0.25), "D5h", 20, 0),
+    ("star6_thin", lambda: star_slab(6, 0.25), "D6h", 24, 0),
+    ("star4_thin", lambda: star_slab(4, 0.25), "D4h", 16, 0),
+    ("star5_thick", lambda: star_slab(5, 0.5), "D5h", 20, 0),
+    ("star7_thick", lambda: star_slab(7, 0.4), "D7h", 28, 0),
+    ("star5_thin_bent", lambda: star_slab(5, 0.25), "D5h", 20, 4.0),
+    ("star6_thin_bent", lambda: star_slab(6, 0.25), "D6h", 24, 8.0),
+    ("box", subdivided_box, "D2h", 8, 0),
+    ("arms6", lambda: armed_ball(6), "C6v", 12, 0),
+    ("arms7", lambda: armed_ball(7), "C7v", 14, 0),
+    ("arms8", lambda: armed_ball(8), "C8v", 16, 0),
+    ("arms9", lambda: armed_ball(9), "C9v", 18, 0),
+    ("arms10", lambda: armed_ball(10), "C10v", 20, 0),
+    ("arms8_swept", lambda: armed_ball(8, sweep=0.5), "C8v", 16, 0),
+    ("chiral3", lambda: armed_ball(3, chiral=True), "C3", 3, 0),
+    ("chiral5", lambda: armed_ball(5, chiral=True), "C5", 5, 0),
+    ("chiral6", lambda: armed_ball(6, chiral=True), "C6", 6, 0),
+    ("blades3", lambda: twisted_blades(3), "D3", 6, 0),
+    ("blades4", lambda: twisted_blades(4), "D4", 8, 0),
+]

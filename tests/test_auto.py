@@ -11,7 +11,7 @@ from symtorch.eval.groups import rigid_residual
 from symtorch.geodesics import GeodesicSolver
 from symtorch.shapes import mirror_blob
 
-from shapes import SUB, detect_quietly  # tests/shapes.py
+from shapes import SUB, detect_quietly, mirror_cloud  # tests/shapes.py
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -27,7 +27,7 @@ def test_detect_accepts_a_precomputed_spectrum(mirror3):
 
 def test_detect_errors():
     v, f = mirror_blob(1)
-    with pytest.raises(ValueError, match="point cloud"):
+    with pytest.raises(ValueError, match="a point cloud needs at least 100 points"):
         detect_symmetries(v, None)
     with pytest.raises(ValueError, match="mode"):
         detect_symmetries(v, f, mode="nope")
@@ -171,3 +171,60 @@ def test_tiny_and_huge_coordinates_are_detected_like_the_unit_mesh():
         assert [s.kind for s in res.symmetries] == [s.kind for s in ref.symmetries] == \
             ["identity", "reflection"]
         assert (res.p2ps == ref.p2ps).all()
+
+
+# ------------------------------------------------------------------------------------ point clouds
+def test_detect_on_a_point_cloud_finds_the_mirror(mirror3):
+    """The vertices alone: the point-cloud Laplacian and heat method, the same result fields."""
+    v, f, mirror = mirror3
+    res = detect_symmetries(v)  # no faces
+    assert res.input == "point_cloud" and res.group.name == "Cs"
+    assert [s.kind for s in res.symmetries] == ["identity", "reflection"]
+    # the fans without their bridges are not exactly symmetric (the normals' signs decide ties)
+    assert (res.reflection.p2p == mirror).double().mean() > 0.99
+    assert res.fmaps.dtype == torch.float64 and res.p2ps.shape == (2, len(v))
+    assert "triangulation" in res.timings
+    mesh = detect_symmetries(v, f)
+    d, dm = res.to_dict(), mesh.to_dict()
+    assert set(d) == set(dm) and d["input"] == "point_cloud" and dm["input"] == "mesh"
+    assert res.fmaps.shape == mesh.fmaps.shape
+
+
+def test_detect_on_the_point_cloud_tools_as_they_are(mirror3):
+    """``cloud_min_cos=None``: robust_laplacian's point-cloud Laplacian and potpourri3d's
+    point-cloud heat method, unchanged; on the exactly symmetric vertices, the exact mirror."""
+    v, _, mirror = mirror3
+    res = detect_symmetries(v, cloud_min_cos=None)
+    assert res.group.name == "Cs" and torch.equal(res.reflection.p2p, mirror)
+
+
+def test_detect_on_surface_samples():
+    """Random points on a mirror-symmetric surface (no mesh vertex among them), as a Mesh without
+    faces: its exact mirror permutation is found."""
+    from symtorch.io import Mesh
+
+    points, mirror = mirror_cloud(600)
+    res = detect_symmetries(Mesh(points, None, "cloud.ply"))
+    assert res.group.name == "Cs" and res.input == "point_cloud"
+    agree = (res.reflection.p2p.numpy() == mirror).mean()
+    assert agree > 0.99, f"mirror found on {agree:.3f} of the points"
+
+
+def test_detect_on_an_asymmetric_point_cloud_reports_no_mirror():
+    points, _ = mirror_cloud(600)
+    x = points[:, 0]
+    bumped = points + np.exp(-((points - points[np.argmax(x)]) ** 2).sum(1) / 0.05)[:, None] * points * 0.5
+    res = detect_symmetries(bumped, mode="reflection")
+    assert res.group.name == "C1", res.info
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda p: p[:50], "at least 100 points"),
+    (lambda p: np.where(np.arange(len(p))[:, None] == 7, np.nan, p), "NaN or inf"),
+    (lambda p: np.vstack([p, p[:4]]), "4 duplicated points"),
+    (lambda p: np.vstack([p, p + [10.0, 0, 0]]), "point cloud has 2 separate parts"),
+])
+def test_detect_point_cloud_errors(make, match):
+    points, _ = mirror_cloud(300)
+    with pytest.raises(ValueError, match=match):
+        detect_symmetries(make(points))

@@ -106,3 +106,39 @@ def test_basis_size_help_states_the_detectors_defaults(capsys):
         text = " ".join(capsys.readouterr().out.split())
         assert f"default {cfg.k_refine}" in text or f"{cfg.k_refine}, capped" in text, (cmd, text)
         assert "default 60" not in text, cmd
+
+
+@pytest.mark.parametrize("ext", [".ply", ".xyz", ".off"])
+def test_cli_detect_on_a_point_cloud_file(tmp_path, capsys, ext):
+    """A file with vertices and no faces: the same JSON as for a mesh, with ``"input": "point_cloud"``."""
+    from symtorch.io import write_mesh
+    from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
+
+    v, _ = mirror_blob(3)
+    mirror = symmetry_maps(v, true_symmetries("mirror_blob"))[1]
+    path, out = tmp_path / f"cloud{ext}", tmp_path / "r.json"
+    if ext == ".xyz":
+        np.savetxt(path, v, fmt="%.17g")
+    else:
+        write_mesh(path, v, None)
+    assert main(["detect", str(path), "--out", str(out), "--threads", "1"]) == 0
+    err = capsys.readouterr().err
+    assert f"{len(v)} points (a point cloud" in err
+    d = json.loads(out.read_text())
+    assert d["input"] == "point_cloud" and d["n_vertices"] == len(v)
+    assert {"mesh", "k", "bands", "symmetries", "group", "timings"} <= set(d)
+    assert d["group"]["name"] == "Cs"
+    assert (np.array(d["symmetries"][1]["p2p"]) == mirror).mean() > 0.99  # fans are not exactly symmetric
+
+
+def test_cli_detect_refuses_a_tiny_point_cloud(tmp_path, capsys):
+    from symtorch.io import write_mesh
+
+    path = tmp_path / "tiny.ply"
+    write_mesh(path, np.random.default_rng(0).normal(size=(40, 3)), None)
+    assert main(["detect", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 or all(not s.startswith("Traceback") for s in err.splitlines())
+    line = [s for s in err.splitlines() if s.startswith("symtorch: error:")]
+    assert len(line) == 1 and line[0] == (f"symtorch: error: {path}: a point cloud needs at least 100 "
+                                          "points for symmetry detection, got 40"), err

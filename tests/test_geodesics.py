@@ -173,3 +173,37 @@ def test_distances_from_reads_back_what_it_solved(sphere):
     small._max_fields = 2
     small.distances_from([1, 2, 3, 4])
     assert len(small._fields) == 2
+
+
+# ------------------------------------------------------------------------------------ point clouds
+@pytest.fixture(scope="module")
+def cloud_solver(sphere):
+    verts, _, _ = sphere
+    return GeodesicSolver(verts, None)
+
+
+def test_point_cloud_heat_matches_great_circle(sphere, cloud_solver):
+    """Without faces the solver runs potpourri3d's point-cloud heat method, as accurate here."""
+    _, _, great_circle = sphere
+    assert cloud_solver.is_point_cloud and cloud_solver.uses_heat
+    D = cloud_solver.distances_from(SOURCES)
+    assert D.shape == (len(SOURCES), cloud_solver.n_verts) and D.dtype == torch.float64
+    G = great_circle(SOURCES)
+    far = G > 0.2 * RADIUS
+    rel = np.abs(D.numpy() - G)[far] / G[far]
+    assert rel.mean() < 0.03 and rel.max() < 0.15, (rel.mean(), rel.max())
+    assert torch.all(D[torch.arange(len(SOURCES)), torch.tensor(SOURCES)] < 0.05 * RADIUS)
+
+
+def test_point_cloud_area_repr_and_graph_fallback(sphere, cloud_solver):
+    verts, _, great_circle = sphere
+    assert abs(cloud_solver.area - 4 * np.pi * RADIUS ** 2) < 0.02 * 4 * np.pi * RADIUS ** 2
+    assert "point cloud" in repr(cloud_solver) and "method=heat" in repr(cloud_solver)
+    D = graph_distances(verts, None, SOURCES)  # Dijkstra on the k-nearest-neighbour graph
+    G = great_circle(SOURCES)
+    # edge paths are longer than geodesics, up to the chord-vs-arc shortfall
+    assert np.all(D.numpy() >= G * (1 - 1e-3) - 1e-9) and np.median(D.numpy() / np.maximum(G, 1e-9)) < 1.2
+    D2 = geodesic_distances(verts, None, SOURCES, method="graph")
+    assert torch.equal(D, D2)
+    P = cloud_solver.pairwise(SOURCES)
+    assert torch.equal(P, P.mT) and torch.all(P.diagonal() == 0)

@@ -5,10 +5,11 @@ What works, and how (the documented behaviour):
 - quads / polygons: triangulated fan-wise, with a warning;
 - degenerate (zero-area) faces, duplicated vertices, non-manifold edges, several components,
   unreferenced vertices: read as they are, with one warning per problem; ``info`` reports them;
-- a point cloud (no faces): ``info`` uses the point-cloud Laplacian;
+- a point cloud (no faces): ``info`` uses the point-cloud Laplacian, ``detect`` the point-cloud path;
 - a single triangle: ``info`` computes the V - 1 eigenvalues there are;
-- ``detect`` refuses what the detector cannot handle with one line: point clouds, several
-  components, unreferenced vertices, and meshes too coarse for the spectrum (fewer than ~90 vertices).
+- ``detect`` refuses what the detector cannot handle with one line: several components,
+  unreferenced vertices, meshes too coarse for the spectrum (fewer than ~90 vertices), point clouds
+  of fewer than 100 points.
 
 Everything else (empty, binary garbage, NaN / inf / overflowing coordinates, face indices out of
 range, zero total area, truncated files, OBJ index 0) fails while reading, naming the file.
@@ -151,7 +152,6 @@ VALID = ["quads.off", "polygons.obj", "degenerate_faces.off", "duplicated_vertic
          "unreferenced_vertices.off", "two_components.off", "nonmanifold_edges.off",
          "point_cloud.off", "single_triangle.off", "good_blob.off", "good_table.ply"]
 DETECT_REFUSED = {
-    "point_cloud.off": "is a point cloud",
     "two_components.off": "has 2 connected components",
     "duplicated_vertices.off": "connected components",
     "unreferenced_vertices.off": "5 vertices are referenced by no face",
@@ -159,7 +159,7 @@ DETECT_REFUSED = {
     "polygons.obj": "symmetry detection failed",
 }
 DETECT_OK = ["quads.off", "degenerate_faces.off", "nonmanifold_edges.off", "good_blob.off",
-             "good_table.ply"]
+             "good_table.ply", "point_cloud.off"]
 
 
 @pytest.fixture(scope="module")

@@ -103,16 +103,21 @@ def run_detector(verts, faces, label: str, **kw):
     """``detect_symmetries`` for the CLI: input it cannot handle and its crashes become one line."""
     from ..detect.auto import detect_symmetries
     from ..io import mesh_report
-    if faces is None:
-        raise CLIError(f"{label}: is a point cloud (no faces); symmetry detection needs a triangle mesh")
-    rep = mesh_report(verts, faces)
-    if rep["n_components"] > 1:
-        raise CLIError(f"{label}: has {rep['n_components']} connected components; symmetry detection "
-                       "needs one connected surface (detect each part on its own; if the parts come "
-                       "from vertices duplicated along seams, merge them first)")
-    if rep["n_unreferenced"]:
-        raise CLIError(f"{label}: {rep['n_unreferenced']} vertices are referenced by no face; "
-                       "remove them first (symmetry maps are reported per vertex)")
+    if faces is None:  # a point cloud: detect_symmetries checks it (too few points, duplicates, parts)
+        from ..point_cloud import check_point_cloud
+        try:
+            check_point_cloud(verts)
+        except ValueError as e:
+            raise CLIError(f"{label}: {str(e).removeprefix('points: ')}") from None
+    else:
+        rep = mesh_report(verts, faces)
+        if rep["n_components"] > 1:
+            raise CLIError(f"{label}: has {rep['n_components']} connected components; symmetry "
+                           "detection needs one connected surface (detect each part on its own; if "
+                           "the parts come from vertices duplicated along seams, merge them first)")
+        if rep["n_unreferenced"]:
+            raise CLIError(f"{label}: {rep['n_unreferenced']} vertices are referenced by no face; "
+                           "remove them first (symmetry maps are reported per vertex)")
     from ..spectrum import _exact_rescale
     c = _exact_rescale(np.asarray(verts, dtype=np.float64))
     if c != 1.0:  # detect_symmetries applies this exact power of two itself; say so here
@@ -142,7 +147,9 @@ def _cmd_detect(args) -> int:
     check_basis_args(args)
     for path in (args.out, args.matrices):
         check_output_path(path)
-    verts, faces, label = load_triangle_mesh(args)
+    verts, faces, label = load_shape(args.mesh, args.demo)
+    _progress(f"{label}: {len(verts)} points (a point cloud: no faces)" if faces is None
+              else f"{label}: {len(verts)} vertices, {len(faces)} faces")
     kw = {}
     if args.k is not None:
         kw["k"] = args.k
@@ -261,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging on stderr")
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser("detect", help="find the intrinsic symmetries of a mesh: a summary, or JSON")
+    d = sub.add_parser("detect", help="find the intrinsic symmetries of a mesh or point cloud: a summary, or JSON")
     add_shape_arguments(d)
     d.add_argument("--out", help="write the JSON result here")
     d.add_argument("--json", action="store_true",

@@ -30,6 +30,8 @@ import torch
 from .._checks import check_mesh
 from ..geodesics import GeodesicSolver
 from ..maps import p2p_to_fmap
+from ..point_cloud import (check_point_cloud, fan_spectrum, local_triangles, local_triangulation,
+                           oriented_normals)
 from ..procrustes import block_project
 from ..sampling import count_components
 from ..spectrum import Spectrum, band_boundary, laplacian_spectrum, solved_bands
@@ -39,7 +41,7 @@ from .result import Diagnostics, SymmetryResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["detect_symmetries", "in_basis"]
+__all__ = ["detect_symmetries", "in_basis", "cloud_surface"]
 
 MODES = ("auto", "reflection", "group")
 
@@ -61,11 +63,17 @@ class _Timer:
 def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectrum | None = None,
                       device: torch.device | str | None = None, config: DetectConfig | None = None,
                       **knobs) -> SymmetryResult:
-    """Find the global intrinsic symmetries of a triangle mesh (see the module docstring).
+    """Find the global intrinsic symmetries of a triangle mesh or point cloud (see the module docstring).
 
     Args:
         shape: [V, 3] vertices (numpy or torch), or a ``symtorch.io.Mesh``.
-        faces: [F, 3] triangles.
+        faces: [F, 3] triangles, or None for a point cloud. A point cloud's Laplacian and heat
+            method run on its local triangle fans, those bridging two touching sheets dropped
+            (``robust_laplacian``'s point-cloud construction; ``config.cloud_min_cos=None``: the
+            point-cloud tools as they are, ``robust_laplacian.point_cloud_laplacian`` and
+            ``potpourri3d.PointCloudHeatSolver``), and what the paths take from faces (neighbours,
+            orientation, gradients) comes from its oriented local triangulation
+            (:func:`cloud_surface`, ``symtorch.point_cloud``).
         mode: ``'reflection'`` (ALGORITHM §4), ``'group'`` (§5) or ``'auto'`` (the policy above).
         spectrum: a precomputed ``laplacian_spectrum(verts, faces, k)``. Without one,
             ``max(k_refine + 10, 60)`` eigenpairs are solved: the bands up to ``k_refine`` complete,
@@ -87,25 +95,37 @@ def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectr
         ``spectrum`` passed in (CPU without one), in its dtype.
 
     Raises:
-        ValueError: for a point cloud, several connected components, or bad mesh input.
+        ValueError: several connected components, bad mesh input; for a point cloud, fewer than
+            ``point_cloud.MIN_POINTS`` points, NaN coordinates, duplicated points, several parts.
         TypeError: an unknown keyword.
     """
     cfg = (DetectConfig() if config is None else config).with_keywords(**knobs)
     timer = _Timer()
-    verts, faces = _shape_inputs(shape, faces)
     if mode not in MODES:
         raise ValueError(f"mode must be 'auto', 'reflection' or 'group', got {mode!r}")
+    verts, faces = _shape_inputs(shape, faces)
+    cloud = faces is None
+    surface = faces  # what the Laplacian and the heat method run on: the mesh, fans, or the cloud
+    if cloud:
+        faces, surface = cloud_surface(verts, cfg.cloud_min_cos)
+        timer.lap("triangulation")
     if spectrum is None:
-        spectrum = laplacian_spectrum(verts, faces, k=max(cfg.k_refine + 10, 60))
+        k = max(cfg.k_refine + 10, 60)
+        spectrum = fan_spectrum(verts, surface, k) if cloud and surface is not None \
+            else laplacian_spectrum(verts, surface, k=k)
+    elif spectrum.evecs.shape[0] != len(verts):
+        raise ValueError(f"spectrum has {spectrum.evecs.shape[0]} vertices but the shape has "
+                         f"{len(verts)}")
     out_device = spectrum.evecs.device
     batch_device = torch.device(device) if device is not None else out_device
     spectrum = spectrum.to("cpu")  # the geometry is solved on the host; the result goes back
     timer.lap("spectrum")
     # one factorisation for both paths (the timer counts it in the first path's first stage)
-    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, faces)
+    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, surface)
     result = _run_policy(verts, faces, spectrum, mode, cfg, solver, timer, batch_device)
     result = in_basis(result, spectrum, band_boundary(solved_bands(spectrum.evals), cfg.k_refine))
-    return replace(result, timings=dict(timer.timings)).to(out_device)
+    return replace(result, timings=dict(timer.timings),
+                   input="point_cloud" if cloud else "mesh").to(out_device)
 
 
 def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, solver: GeodesicSolver,
@@ -141,24 +161,45 @@ def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, 
 
 
 def _shape_inputs(shape, faces):
+    """(verts [V, 3] float64, faces [F, 3] or None for a point cloud): checked, rescaled near 1."""
     if isinstance(shape, Spectrum):
         raise ValueError("pass verts and faces with spectrum=...; detection needs the geometry")
     if hasattr(shape, "verts"):  # symtorch.io.Mesh
         shape, faces = shape.verts, shape.faces
-    if faces is None:
-        raise ValueError("symmetry detection needs a triangle mesh; got a point cloud (faces=None)")
-    verts, faces = check_mesh(shape, faces)
+    verts, faces = (check_point_cloud(shape), None) if faces is None else check_mesh(shape, faces)
     from ..spectrum import _exact_rescale
 
     c = _exact_rescale(np.asarray(verts.detach().cpu() if torch.is_tensor(verts) else verts,
                                   dtype=np.float64))
     if c != 1.0:  # coordinates far from 1 (areas of 1e-150 underflow): a power of two is exact and
         verts = verts * c  # changes no map; the geometry code (geodesics, tolerances) needs it
-    n_parts = count_components(faces, len(verts))
+    n_parts = 1 if faces is None else count_components(faces, len(verts))
     if n_parts > 1:
         raise ValueError(f"mesh has {n_parts} connected components; symmetry detection needs one "
                          "connected surface (detect each part on its own, or merge seam duplicates)")
     return verts, faces
+
+
+def cloud_surface(points: np.ndarray, min_cos: float | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """What a point cloud's detection runs on: (faces [F, 3], surface [T, 3] or None).
+
+    ``faces`` stand in for a mesh's in the paths (neighbours, orientation votes, gradients): the
+    local triangulation, oriented (``point_cloud.local_triangulation``). ``surface`` is what the
+    Laplacian and the heat method run on: the fans without their bridging triangles
+    (``point_cloud.local_triangles(min_cos)``), or None (``min_cos=None``) for the point cloud itself.
+
+    Raises:
+        ValueError: the points form several separate parts.
+    """
+    normals = oriented_normals(points)
+    fans = local_triangles(points, normals, min_cos)
+    faces = local_triangulation(points, normals, fans)
+    n_parts = count_components(faces, len(points))
+    if n_parts > 1:
+        raise ValueError(f"point cloud has {n_parts} separate parts (no local triangle joins them); "
+                         "symmetry detection needs one connected surface (detect each part on its "
+                         "own, or remove outlying points)")
+    return faces, None if min_cos is None else fans
 
 
 def _several_involutions(reflected: SymmetryResult, tol: float) -> bool:

@@ -22,21 +22,36 @@ from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
 
-__all__ = ["invariant_points", "partner_mask", "source_tuples", "candidate_tuples", "tuple_pairs", "TuplePairs"]
+__all__ = ["invariant_points", "partner_mask", "Pinning", "source_tuples", "candidate_tuples", "tuple_pairs",
+           "TuplePairs"]
 
 
 def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
-                     nms_radius: float = 1.0, scales=(1.0, 0.1, 0.02), per_scale: int = 40) -> np.ndarray:
+                     nms_radius: float = 1.0, scales=(1.0, 0.1, 0.02), per_scale: int = 40,
+                     valley: float = 1e-3) -> np.ndarray:
     """A symmetry-invariant point set: multi-scale HKS maxima and minima, thinned by farthest-point suppression.
+
+    The suppression merges one feature found at several scales (or at neighbouring vertices); it
+    must not merge two points of one orbit, or the set stops being invariant: the top and bottom
+    corners of a thin prism lie closer than ``nms_radius``, and keeping one of each pair leaves a
+    set that no top/bottom mirror maps onto itself (nor can its tuples pin the eigenfunctions odd
+    under that mirror). So a point near a kept one is kept where both are extrema of the same
+    function (scale and sign) separated by a valley: on every path between them inside the
+    suppression ball's neighbourhood the function drops by more than ``valley`` times its range
+    over the shape (a topological persistence test). Orbit partners are such distinct extrema
+    (the corners of a star slab 0.9 eps apart: about 1e-2); the extrema that noise makes on a flat
+    region (the top of a table) are not (below 1e-4).
 
     Args:
         evals: [K]; evecs: [V, K] of the unit-area shape.
         faces: [F, 3].
         verts_unit: [V, 3] unit-area vertex positions (for the suppression radius).
         n_max: most points returned.
-        nms_radius: no two points closer than this many ``eps`` (Euclidean, unit area).
+        nms_radius: no two points closer than this many ``eps`` (Euclidean, unit area), unless
+            they are distinct extrema of one function (above).
         scales: HKS times as fractions of ``4 ln 10 / lambda_2``.
         per_scale: maxima considered per scale (by decreasing value).
+        valley: the least drop, relative to the function's range, between two distinct extrema.
 
     Returns:
         [N] vertex ids, coarse scales first.
@@ -47,28 +62,93 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
     h = hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))  # [V, T]
     adj = vertex_adjacency(faces, V)
     cand: list[int] = []
+    source: dict[int, int] = {}  # the function (scale, sign) a candidate is an extremum of
     for col in range(h.shape[1]):
         for sign in (1.0, -1.0):  # maxima (tips, convex corners), then minima (concave corners)
             for v in local_maxima(sign * h[:, col].numpy(), adj, rings=2)[:per_scale]:
                 if int(v) not in cand:
                     cand.append(int(v))
+                    source[int(v)] = 2 * col + (sign < 0)
     x = np.asarray(verts_unit)
+    hn = h.numpy()
     keep: list[int] = []
     r = nms_radius * EPS_KLC
     for v in cand:
-        if not keep or np.linalg.norm(x[keep] - x[v], axis=1).min() > r:
+        near = [k for k in keep if np.linalg.norm(x[k] - x[v]) <= r] if keep else []
+        if all(source[k] == source[v] and _separated(hn[:, source[v] // 2] * (-1 if source[v] % 2 else 1),
+                                                     adj, x, k, v, 2.5 * r, valley) for k in near):
             keep.append(v)
         if len(keep) == n_max:
             break
     return np.asarray(keep, dtype=np.int64)
 
 
-def source_tuples(dist: np.ndarray, size: int, n_sources: int, usable: np.ndarray | None = None) -> list[list[int]]:
+def _separated(f: np.ndarray, adj, x: np.ndarray, a: int, b: int, radius: float, valley: float) -> bool:
+    """Whether two maxima ``a``, ``b`` of ``f`` [V] are separated by a valley: no path between them
+    within ``radius`` of ``b`` keeps ``f`` above ``min(f[a], f[b]) - valley * range(f)``."""
+    from scipy.sparse.csgraph import connected_components
+
+    level = min(f[a], f[b]) - valley * float(f.max() - f.min())
+    sub = np.flatnonzero((np.linalg.norm(x - x[b], axis=1) <= radius) & (f >= level))
+    if a not in sub or b not in sub:
+        return True
+    _, lab = connected_components(adj[sub][:, sub], directed=False)
+    pos = np.searchsorted(sub, [a, b])
+    return bool(lab[pos[0]] != lab[pos[1]])
+
+
+class Pinning:
+    """How well the points of ``P`` pin each band: the disk constraints of a tuple, band by band.
+
+    The Procrustes block of band ``b`` is determined by a tuple ``T`` when the disk coefficients of
+    its points in that band, ``X_b(T)`` [|T| R, k_b], have full rank: its smallest singular value is
+    the tuple's hold on the band. ``m + 1`` points in general position pin a band of size ``m``,
+    but an orbit can lie on the nodal set of an eigenfunction: the eight corners of a box sit near
+    the zeros of one eigenfunction that every mirror negates, and the tips of a thin star lie on
+    its mid-plane, where every eigenfunction its top/bottom mirror negates vanishes. A tuple of
+    such points leaves the sign (or the block) of that band to noise, and the candidates of a
+    mirror come out as a rotation. ``strength`` compares the hold of a tuple with that of a
+    typical tuple of its size, ``sigma_min(X_b(T)) / (sigma_min(X_b(P)) sqrt(|T| / n))``: about 1
+    for points in general position.
+
+    Args:
+        coef: [n, R, K] disk coefficients of the points (``constraints.disk_coefficients``).
+        bands: bands covering ``0..K-1``.
+    """
+
+    def __init__(self, coef: Tensor, bands: list[range]):
+        self.coef = coef.double()
+        self.bands = [b for b in bands if b.start > 0]  # the constant band is pinned by any disk
+        n = coef.shape[0]
+        self.ref = torch.stack([self._hold(np.arange(n), b) for b in self.bands]) / math.sqrt(n)
+
+    def _hold(self, tup, b: range) -> Tensor:
+        X = self.coef[torch.as_tensor(np.asarray(tup))][:, :, b.start:b.stop].reshape(-1, len(b))
+        if X.shape[0] < len(b):
+            return X.new_zeros(())
+        return torch.linalg.svdvals(X)[-1]
+
+    def strength(self, tup) -> float:
+        """Weakest relative hold of the tuple over the bands (1: as a typical tuple; 0: a band free)."""
+        if not self.bands:
+            return 1.0
+        hold = torch.stack([self._hold(tup, b) for b in self.bands])
+        return float((hold / (self.ref * math.sqrt(len(tup))).clamp_min(1e-12)).min())
+
+
+def source_tuples(dist: np.ndarray, size: int, n_sources: int, usable: np.ndarray | None = None,
+                  pinning: Pinning | None = None, min_pin: float = 0.3,
+                  max_extra: int = 2) -> list[list[int]]:
     """Well-spread point tuples: geodesic farthest-point orders from different starting points.
 
     ``usable`` [n] bool marks the points preferred in a tuple (those with a descriptor partner: a
     point of P without one is either on every symmetry axis, or an extremum whose partners were
     lost, which would leave the tuple with no image at all); others fill in when too few.
+
+    With ``pinning``, a tuple that holds some band weakly (``Pinning.strength`` below ``min_pin``)
+    is grown by up to ``max_extra`` points, each the usable point that most strengthens its weakest
+    band, while that helps: a longer tuple also prunes its targets harder, so the candidates do not
+    multiply.
     """
     n = dist.shape[0]
     ok = np.ones(n, dtype=bool) if usable is None or usable.sum() < size else usable
@@ -84,11 +164,29 @@ def source_tuples(dist: np.ndarray, size: int, n_sources: int, usable: np.ndarra
                 dmin = dist[tup].min(0)
                 dmin[tup] = -1
             tup.append(int(dmin.argmax()))
+        if pinning is not None:
+            tup = _pinned(tup, pinning, ok, min_pin, max_extra)
         if sorted(tup) not in [sorted(t) for t in out]:
             out.append(tup)
         if len(out) == n_sources:
             break
     return out
+
+
+def _pinned(tup: list[int], pinning: Pinning, ok: np.ndarray, min_pin: float, max_extra: int) -> list[int]:
+    """``tup`` grown greedily until every band is held (see :func:`source_tuples`)."""
+    best = pinning.strength(tup)
+    for _ in range(max_extra):
+        if best >= min_pin:
+            break
+        trial = [(pinning.strength(tup + [int(c)]), int(c)) for c in np.flatnonzero(ok) if int(c) not in tup]
+        if not trial:
+            break
+        s, c = max(trial)
+        if s <= best:
+            break
+        tup, best = tup + [c], s
+    return tup
 
 
 def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delta: float = 0.9,
@@ -156,7 +254,7 @@ class TuplePairs(NamedTuple):
     """Candidate correspondences: row ``i`` pairs source tuple ``src[i]`` with target ``dst[i]``.
 
     Attributes:
-        src, dst: [B, t] indices into the point set.
+        src, dst: [B, t] indices into the point set; -1 pads a row whose tuple is shorter than ``t``.
         n_with_partner: points with a partner other than themselves.
         n_sources: source tuples used; n_before: ordered target tuples before pruning.
     """
@@ -169,20 +267,24 @@ class TuplePairs(NamedTuple):
 
 
 def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int,
-                delta: float) -> TuplePairs:
-    """A few well-spread source tuples of ``size`` points, each paired with every ordered target
-    tuple that keeps its geodesic distances (ratio ``delta``) and whose points are allowed partners.
+                delta: float, pinning: Pinning | None = None) -> TuplePairs:
+    """A few well-spread source tuples of ``size`` points (more where ``pinning`` says a band is
+    held weakly), each paired with every ordered target tuple that keeps its geodesic distances
+    (ratio ``delta``) and whose points are allowed partners.
 
-    Source points are taken among those that have a partner other than themselves.
+    Source points are taken among those that have a partner other than themselves. Tuples may
+    differ in length; the rows of the result are padded with -1 (``TuplePairs``).
     """
     partner = allowed.sum(1) > 1
-    srcs = source_tuples(dist, size, n_sources, partner)
+    srcs = source_tuples(dist, size, n_sources, partner, pinning)
     tuples_src, tuples_dst, before = [], [], 0
+    width = max([len(t) for t in srcs], default=size)
     for src in srcs:
         q, tot = candidate_tuples(src, dist, allowed, delta)
         before += tot
-        tuples_src.append(np.repeat(np.asarray(src)[None], len(q), 0))
-        tuples_dst.append(q)
+        pad = np.full((len(q), width - len(src)), -1, dtype=np.int64)
+        tuples_src.append(np.concatenate([np.repeat(np.asarray(src)[None], len(q), 0), pad], 1))
+        tuples_dst.append(np.concatenate([q, pad], 1))
     P = np.concatenate(tuples_src) if tuples_src else np.zeros((0, size), dtype=np.int64)
     Q = np.concatenate(tuples_dst) if tuples_dst else np.zeros((0, size), dtype=np.int64)
     return TuplePairs(P, Q, int(partner.sum()), len(srcs), int(before))

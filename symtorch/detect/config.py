@@ -146,6 +146,11 @@ class DetectConfig:
         group_tol: where the reflection path finds at least three involutive permutations of its
             extrema with consistency scores below this (a C2v or D2h shape, whose spectrum is
             simple), the group path runs too; 0 disables that second opinion.
+        cloud_min_cos: point clouds: the Laplacian and the heat method run on the local
+            triangle fans (``point_cloud.local_triangles``) without the triangles whose corner
+            normals disagree, some cosine below this (fans bridging two sheets that touch); None:
+            on the point cloud as it is (``robust_laplacian.point_cloud_laplacian``,
+            ``potpourri3d.PointCloudHeatSolver``), bridges included.
         reflection: the reflection path's knobs.
         group: the group path's knobs.
     """
@@ -155,6 +160,7 @@ class DetectConfig:
     group_k: int = 20
     group_k_refine: int = 40
     group_tol: float = 0.06
+    cloud_min_cos: float | None = 0.0
     reflection: ReflectionConfig = field(default_factory=ReflectionConfig)
     group: GroupConfig = field(default_factory=GroupConfig)
 

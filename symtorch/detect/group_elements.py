@@ -20,6 +20,7 @@ plus a quarter of the mean ``off``, where ``pi(p)`` is the point of ``P`` neares
 """
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -190,15 +191,28 @@ class CoarseElements:
         self.elements.append(CoarseElement(C0, img, dst))
         return True
 
-    def close(self, rounds: int = 3) -> None:
-        """Add what composition implies (``groups.closure``), refined and screened like the rest."""
+    def close(self, rounds: int = 3) -> bool:
+        """Add what composition implies (``groups.closure``), refined and screened like the rest.
+
+        Returns:
+            whether the set ended closed: the last closure ran to the end (within its
+            ``max_order``) and added nothing that survived the screen. A round cut at ``max_order``
+            is no failure where a later round closes the set (noisy products of a 20-element
+            set can outnumber ``2 G + 8`` before they are screened), so ``closure``'s own warning
+            is left to the caller, once, from this flag.
+        """
+        closed = False
         for _ in range(rounds):
-            cl = closure(torch.stack([e.fmap for e in self.elements]), tol=DEFAULT_TOL,
-                         max_order=2 * len(self.elements) + 8)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                cl = closure(torch.stack([e.fmap for e in self.elements]), tol=DEFAULT_TOL,
+                             max_order=2 * len(self.elements) + 8)
             new = cl.fmaps[cl.added]
             # every product is tried (a list, not a short-circuiting generator)
             if len(new) == 0 or not any([self.add(block_project(Cn, self.bands0)) for Cn in new]):
+                closed = cl.converged
                 break
+        return closed
 
 
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,

@@ -198,6 +198,7 @@ class SymmetryResult:
         continuous: True when the shape has a continuous symmetry (then ``symmetries`` is the identity).
         timings: seconds per stage, in the order they ran.
         diagnostics: what each path saw and decided.
+        input: ``'mesh'`` or ``'point_cloud'``, what the detection ran on.
     """
 
     symmetries: list[Symmetry]
@@ -207,6 +208,7 @@ class SymmetryResult:
     continuous: bool = False
     timings: dict[str, float] = field(default_factory=dict)
     diagnostics: Diagnostics | None = None
+    input: str = "mesh"
 
     def to(self, device: torch.device | str) -> SymmetryResult:
         """The result with its matrices, maps, spectrum and group tables on ``device`` (itself when
@@ -257,6 +259,7 @@ class SymmetryResult:
              **({"reversing": bool(rev[i])} if i < len(rev) else {})}
             for i, s in enumerate(self.symmetries)]
         return {
+            "input": self.input,
             "n_vertices": int(self.spectrum.evecs.shape[0]),
             "k": int(self.symmetries[0].fmap.shape[-1]),
             "bands": [[b.start, b.stop] for b in self.bands],

@@ -40,8 +40,11 @@ def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[
     comp = P[:, None, :].expand(-1, len(p2ps), -1).gather(2, img[None].expand(len(p2ps), -1, -1))
     # comp[a, b] = p2p_a[p2p_b[samples]]
     # median, not mean: a map that differs from another only on a small part (a near-identity that
-    # flips one limb) is the same element, not a new one
-    gap = (verts_unit[comp][:, :, None] - verts_unit[img][None, None]).norm(dim=-1).median(-1).values
+    # flips one limb) is the same element, not a new one; one row a at a time, so that memory grows
+    # as G^2 S, not G^3 S (150 noisy elements once asked for 16 GB here)
+    pos = verts_unit[img]  # [G, S, 3]
+    gap = torch.stack([(verts_unit[comp[a]][:, None] - pos[None]).norm(dim=-1).median(-1).values
+                       for a in range(len(p2ps))])  # [G, G, G]: product (a, b) to element c
     best, idx = gap.min(-1)
     return idx, best / EPS_KLC
 
@@ -56,13 +59,18 @@ def _forms_group(T: np.ndarray, idx: list[int]) -> bool:
 
 
 def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
-                     tol: float = 1.0) -> tuple[list[int], Tensor]:
+                     tol: float = 1.0, same_tol: float = 0.5) -> tuple[list[int], Tensor]:
     """The largest set of elements (identity first, lowest ``cost`` first) closed under composition.
 
     Greedy: an element joins when the set it generates, by products matched to the elements present
     (within ``tol`` eps, :func:`map_table`), stays inside the verified elements; otherwise it is left
-    out (a near-isometry the rest of the group does not confirm). Maps within ``tol`` of each other
-    are one element, represented by the lowest-cost copy, also where a product matches another copy.
+    out (a near-isometry the rest of the group does not confirm). Maps closer than ``same_tol`` eps,
+    or two vertex spacings where that is more, are one element, represented by the lowest-cost
+    copy, also where a product matches another copy: two copies of an element differ by the jitter
+    of a nearest-neighbour map, a vertex or two, or the resolution of the basis. ``same_tol`` is
+    the coarse stage's own duplicate test (mean gap under eps / 2, ``detect.group_elements``): with
+    ``tol`` there, the top/bottom mirror of a slab about one eps thick (its images a median 0.9 eps
+    from those of the identity) was merged with the identity, and half of a D_nh group with it.
 
     Returns:
         (indices kept, [G', G'] long table among them, renumbered in the order kept).
@@ -70,7 +78,12 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     T, gap = (x.numpy() for x in map_table(p2ps, verts_unit, samples))
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
     pos = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
-    same = ((pos[:, None] - pos[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= tol  # [G, G]
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(verts_unit.detach().cpu(), dtype=np.float64)
+    spacing = float(np.median(cKDTree(x).query(x, k=2)[0][:, 1])) / EPS_KLC  # a vertex spacing, in eps
+    same_tol = max(same_tol, 2 * spacing)
+    same = ((pos[:, None] - pos[None]).norm(dim=-1).median(-1).values / EPS_KLC).numpy() <= same_tol  # [G, G]
     e = 0  # the identity is the first element
     order = [e] + [int(i) for i in np.argsort(cost, kind="stable") if i != e]
     # duplicates (the same map twice, e.g. a closure product that upsampled onto an element) stand

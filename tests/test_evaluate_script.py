@@ -1,0 +1,40 @@
+"""scripts/evaluate.py's point-cloud options: the seeded subsample and the map lifted to the mesh."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+_SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "evaluate.py"
+
+
+def _load_script():
+    spec = importlib.util.spec_from_file_location("evaluate_script", _SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_point_subset_is_seeded_sorted_and_distinct():
+    ev = _load_script()
+    a, b = ev.point_subset(1000, 300, seed=0), ev.point_subset(1000, 300, seed=0)
+    assert np.array_equal(a, b) and len(np.unique(a)) == 300 and (np.diff(a) > 0).all()
+    assert not np.array_equal(a, ev.point_subset(1000, 300, seed=1))
+    assert np.array_equal(ev.point_subset(1000, None, 0), np.arange(1000))
+    assert np.array_equal(ev.point_subset(1000, 5000, 0), np.arange(1000))
+
+
+def test_lift_to_mesh_sends_each_vertex_where_its_nearest_point_goes():
+    ev = _load_script()
+    rng = np.random.default_rng(0)
+    verts = rng.normal(size=(500, 3))
+    mirror = verts * [-1.0, 1.0, 1.0]
+    verts = np.concatenate([verts, mirror])  # vertex i and i + 500 are mirror twins
+    keep = np.arange(0, 1000, 2)              # even ids: twins stay twins (500 is even)
+    twin = (keep + 500) % 1000
+    p2p_sub = np.searchsorted(keep, twin)     # the mirror on the kept points
+    lifted = ev.lift_to_mesh(p2p_sub, keep, verts)
+    assert lifted.shape == (1000,)
+    assert np.array_equal(lifted[keep], twin)  # a kept point goes where the map sends it
+    odd = np.arange(1, 1000, 2)
+    nearest = keep[np.argmin(((verts[odd, None] - verts[keep][None]) ** 2).sum(-1), 1)]
+    assert np.array_equal(lifted[odd], (nearest + 500) % 1000)
