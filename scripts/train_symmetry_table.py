@@ -3,7 +3,8 @@
     python scripts/train_symmetry_table.py results.jsonl
 
 One line per dataset, regime and run: the plain error and flipped share, then the error after each
-post-process, and the ratio of the symmetry pipeline (``augment+tta+parts``) to the baseline. Later
+post-process, and the ratio of the symmetry pipeline (``augment+tta``: mirror augmentation,
+mirror test-time averaging) to the baseline, with its flipped share. Later
 rows of the same setting replace earlier ones.
 """
 from __future__ import annotations
@@ -13,8 +14,8 @@ import json
 from pathlib import Path
 
 POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts")
-RUNS = ("baseline", "augment", "losses", "full")
-PIPELINE = "augment+tta+parts"
+RUNS = ("baseline", "augment", "augment-pair", "losses", "full")
+PIPELINE = "augment+tta"
 
 
 def main() -> None:
@@ -40,7 +41,8 @@ def main() -> None:
             best = rows.get((ds, regime, PIPELINE, seed, sym))
             ratio = (f"{got[0]['error'] / base['error']:.2f}" if base else "–")
             if run == "augment" and best and base:
-                ratio += f" (pipeline {best['error'] / base['error']:.2f})"
+                ratio += (f" (pipeline {best['error'] / base['error']:.2f}, "
+                          f"{100 * best['flipped']:.1f} % flipped)")
             print(f"| {ds} | {regime} | {got[0]['n_train']} | {run} | {cells[0]} | "
                   f"{100 * got[0]['flipped']:.1f} % | " + " | ".join(cells[1:]) + f" | {ratio} |")
 

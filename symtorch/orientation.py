@@ -334,13 +334,7 @@ def face_orientation_votes(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, ver
 def orientation_agreement(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, verts_y: Tensor,
                           faces_y: Tensor, max_stretch: float = 3.0) -> Tensor:
     """Area-weighted orientation vote of point maps between two shapes, in [-1, 1]: the mean of
-    :func:`face_orientation_votes` over the faces of y that vote.
-
-    Args:
-        p2p_yx: [..., V_y] long, image on x of each vertex of y.
-        verts_x: [V_x, 3]; faces_x: [F_x, 3] long, consistently oriented.
-        verts_y: [V_y, 3]; faces_y: [F_y, 3] long, consistently oriented.
-        max_stretch: locality bound.
+    :func:`face_orientation_votes` (same arguments) over the faces of y that vote.
 
     Returns:
         [...] votes in the dtype of ``verts_x``: +1 orientation-preserving, -1 reversing (0 where

@@ -29,7 +29,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-__all__ = ["icosphere", "radial_surface", "mirror_blob", "star_prism", "ngon_prism", "table",
+__all__ = ["icosphere", "radial_surface", "outline_prism", "mirror_blob", "star_prism", "ngon_prism", "table",
            "propeller", "asymmetric", "ellipsoid", "true_symmetries", "symmetry_maps", "SHAPES",
            "polar_prism", "polar_prism_symmetries"]
 
@@ -212,26 +212,16 @@ def _quad_strip(lo: np.ndarray, hi: np.ndarray, verts: list, faces: list, flip: 
         faces += [t[::-1] for t in tris] if flip else tris
 
 
-def polar_prism(n: int = 6, segments: int = 3, rings: int = 6, cap_rings: int = 4,
-                height: float = 0.8, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """D_nh (4n elements), exactly: a closed regular n-gon prism whose triangulation has the symmetry.
-
-    The side is ``rings`` levels of the n-gon boundary (each side cut into ``segments``), joined by
-    quads with a centre vertex; each cap is ``cap_rings`` shrunken copies of the boundary joined the
-    same way, and a fan around the cap centre. Every rotation by ``2 pi / n`` about z, every vertical
-    mirror through a corner or a side midpoint, and the top/bottom swap map the vertex set and the
-    faces onto themselves, so the cotangent Laplacian commutes with D_nh and its eigenvalues have the
-    exact multiplicities 1 or 2 of the irreducible representations (the ``ngon_prism`` builder is
-    only symmetric up to its icosphere triangulation). Corners at angles ``2 pi j / n``, matching
-    ``_dihedral(n, True, True)``. Outward-oriented, closed, genus 0.
+def outline_prism(poly: np.ndarray, height: float, rings: int = 5,
+                  cap_rings: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """A closed prism over a star-shaped outline ``poly [N, 2]`` (about the origin, counter-clockwise):
+    ``rings`` levels of the outline joined by quads with a centre vertex, and caps of ``cap_rings``
+    shrunken copies of the outline with a fan around the centre. Any symmetry of the outline (and the
+    top/bottom swap) maps the vertex set and the faces onto themselves. Outward-oriented, closed.
 
     Returns:
         (verts [V, 3] float64, faces [F, 3] int64).
     """
-    if n < 3 or segments < 1 or rings < 2 or cap_rings < 1:
-        raise ValueError(f"need n >= 3, segments >= 1, rings >= 2, cap_rings >= 1, got n={n}, "
-                         f"segments={segments}, rings={rings}, cap_rings={cap_rings}")
-    poly = _polygon(n, segments, radius)  # [N, 2]
     N = len(poly)
     z = height * (np.arange(rings) / (rings - 1) - 0.5)
     verts: list = [np.array([x, y, zr]) for zr in z for x, y in poly]
@@ -253,6 +243,30 @@ def polar_prism(n: int = 6, segments: int = 3, rings: int = 6, cap_rings: int = 
             a, b = last[k], last[(k + 1) % N]
             faces.append((centre, a, b) if top else (centre, b, a))
     return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+
+
+def polar_prism(n: int = 6, segments: int = 3, rings: int = 6, cap_rings: int = 4,
+                height: float = 0.8, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """D_nh (4n elements), exactly: a closed regular n-gon prism whose triangulation has the symmetry.
+
+    The side is ``rings`` levels of the n-gon boundary (each side cut into ``segments``), joined by
+    quads with a centre vertex; each cap is ``cap_rings`` shrunken copies of the boundary joined the
+    same way, and a fan around the cap centre. Every rotation by ``2 pi / n`` about z, every vertical
+    mirror through a corner or a side midpoint, and the top/bottom swap map the vertex set and the
+    faces onto themselves, so the cotangent Laplacian commutes with D_nh and its eigenvalues have the
+    exact multiplicities 1 or 2 of the irreducible representations (the ``ngon_prism`` builder is
+    only symmetric up to its icosphere triangulation). Corners at angles ``2 pi j / n``, matching
+    ``_dihedral(n, True, True)``. Outward-oriented, closed, genus 0.
+
+    Returns:
+        (verts [V, 3] float64, faces [F, 3] int64).
+    """
+    if n < 3 or segments < 1 or rings < 2 or cap_rings < 1:
+        raise ValueError(f"need n >= 3, segments >= 1, rings >= 2, cap_rings >= 1, got n={n}, "
+                         f"segments={segments}, rings={rings}, cap_rings={cap_rings}")
+    poly = _polygon(n, segments, radius)  # [N, 2]
+    N = len(poly)
+    return outline_prism(poly, height, rings, cap_rings)
 
 
 def polar_prism_symmetries(n: int = 6) -> list[np.ndarray]:

@@ -5,7 +5,8 @@ import warnings
 import numpy as np
 import torch
 
-from symtorch.shapes import _quad_strip, mirror_blob, symmetry_maps, true_symmetries
+from symtorch.shapes import (_mirror, _quad_strip, _rot_z, mirror_blob, outline_prism, symmetry_maps,
+                             true_symmetries)
 
 
 def mirror_mesh(subdivisions: int = 2, dtype=torch.float64):
@@ -64,17 +65,6 @@ def mirror_cloud(n: int = 600, subdivisions: int = 4, seed: int = 0):
 # each group is exact up to the cotangent Laplacian's rounding; bent versions keep it intrinsically.
 
 
-def _rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-
-
-def _mirror(normal) -> np.ndarray:
-    n = np.asarray(normal, dtype=np.float64)
-    n = n / np.linalg.norm(n)
-    return np.eye(3) - 2 * np.outer(n, n)
-
-
 def group_mats(n: int, vertical_mirrors: bool = False, horizontal_mirror: bool = False,
                half_turns: bool = 0) -> list[np.ndarray]:
     """C_n, C_nv, D_nh or D_n about z: rotations by 2 pi k / n, mirrors through the planes at angles
@@ -88,32 +78,6 @@ def group_mats(n: int, vertical_mirrors: bool = False, horizontal_mirror: bool =
     if half_turns:
         mats += [m @ np.diag([1.0, -1.0, -1.0]) for m in mats[:n]]
     return mats
-
-
-def outline_prism(poly: np.ndarray, height: float, rings: int = 5, cap_rings: int = 8):
-    """A closed prism over a star-shaped outline ``poly`` [N, 2] (about the origin), with caps made
-    of shrunken copies of the outline (``symtorch.shapes.polar_prism`` for any outline)."""
-    N = len(poly)
-    z = height * (np.arange(rings) / (rings - 1) - 0.5)
-    verts = [np.array([x, y, zr]) for zr in z for x, y in poly]
-    faces: list = []
-    side = np.arange(rings * N).reshape(rings, N)
-    for r in range(rings - 1):
-        _quad_strip(side[r], side[r + 1], verts, faces, flip=0)
-    for zc, outer, top in ((z[-1], side[-1], True), (z[0], side[0], 0)):
-        inner = None
-        for c in range(cap_rings - 1, 0, -1):
-            ring = np.arange(len(verts), len(verts) + N)
-            verts += [np.array([x, y, zc]) for x, y in poly * c / cap_rings]
-            _quad_strip(ring, outer if inner is None else inner, verts, faces, flip=top)
-            inner = ring
-        last = outer if inner is None else inner
-        centre = len(verts)
-        verts.append(np.array([0.0, 0.0, zc]))
-        for k in range(N):
-            a, b = last[k], last[(k + 1) % N]
-            faces.append((centre, a, b) if top else (centre, b, a))
-    return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
 
 
 def star_slab(n: int = 5, height: float = 0.25, inner: float = 0.5, segments: int = 6):
@@ -231,3 +195,19 @@ GROUP_SHAPES = [
     ("blades3", lambda: twisted_blades(3), "D3", 6, 0),
     ("blades4", lambda: twisted_blades(4), "D4", 8, 0),
 ]
+
+
+def matrix_order(R: np.ndarray, max_order: int = 40) -> int:
+    """The order of a finite-order orthogonal matrix ``R [3, 3]`` (smallest n with R^n = I)."""
+    P = np.eye(3)
+    for n in range(1, max_order + 1):
+        P = P @ R
+        if np.abs(P - np.eye(3)).max() < 1e-9:
+            return n
+    raise AssertionError("not a finite-order matrix")
+
+
+def wobble(verts: torch.Tensor) -> torch.Tensor:
+    """A smooth non-rigid displacement of a torch mesh: near-isometric, it breaks the mirror symmetry."""
+    x, y, z = verts.unbind(-1)
+    return verts + 0.08 * torch.stack([torch.sin(2 * y + 0.3), torch.cos(1.7 * z), torch.sin(1.3 * x + 0.5)], -1)

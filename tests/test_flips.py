@@ -3,20 +3,14 @@ import pytest
 import torch
 
 from symtorch.flips import resolve_symmetry_parts
-from shapes import mirror_mesh
-
-
-def bend(verts):
-    """A smooth non-rigid displacement: near-isometric, and it breaks the mirror symmetry."""
-    x, y, z = verts.unbind(-1)
-    return verts + 0.08 * torch.stack([torch.sin(2 * y + 0.3), torch.cos(1.7 * z), torch.sin(1.3 * x + 0.5)], -1)
+from shapes import mirror_mesh, wobble
 
 
 @pytest.fixture(scope="module")
 def pair():
     """The mirror blob (x), its bent copy (y: the identity is the true map), and x's mirror."""
     verts, faces, mirror = mirror_mesh(3)
-    return verts, faces, bend(verts), mirror
+    return verts, faces, wobble(verts), mirror
 
 
 def test_a_flipped_part_is_sent_back_and_the_rest_kept(pair):

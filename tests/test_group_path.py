@@ -15,7 +15,7 @@ from symtorch.eval.groups import dihedral_orbit_errors, element_rates
 from symtorch.geodesics import GeodesicSolver
 from symtorch.groups import check_group
 
-from shapes import SUB, detect_quietly  # tests/shapes.py
+from shapes import SUB, detect_quietly, matrix_order  # tests/shapes.py
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -38,15 +38,6 @@ CASES = [("star_prism", "D5h", 20), ("ngon_prism", "D6h", 24), ("table", "C4v", 
          ("asymmetric", "C1", 1)]
 
 
-def _true_order(R: np.ndarray) -> int:
-    P = np.eye(3)
-    for n in range(1, 25):
-        P = P @ R
-        if np.abs(P - np.eye(3)).max() < 1e-9:
-            return n
-    raise AssertionError("not a finite-order matrix")
-
-
 def _check_against_truth(res, verts, faces, true_maps, name, true_mats):
     G = len(true_maps)
     assert len(res.symmetries) == G, f"{name}: {len(res.symmetries)} elements, expected {G}; {res.diagnostics}"
@@ -61,9 +52,9 @@ def _check_against_truth(res, verts, faces, true_maps, name, true_mats):
     agree = (res.p2ps[:, None] == torch.as_tensor(np.asarray(true_maps))[None]).double().mean(-1)  # [G, G]
     for s, j, o, r in zip(res.symmetries, agree.argmax(1).tolist(), res.group.orders.tolist(), res.group.reversing.tolist()):
         R = true_mats[j]
-        assert s.order == o == _true_order(R), f"{name}: order {s.order} / {o} vs true {_true_order(R)}"
+        assert s.order == o == matrix_order(R), f"{name}: order {s.order} / {o} vs true {matrix_order(R)}"
         assert bool(r) == (np.linalg.det(R) < 0), f"{name}: reversing {r} vs det {np.linalg.det(R):.0f}"
-        assert (s.kind == "reflection") == (np.linalg.det(R) < 0 and _true_order(R) == 2)
+        assert (s.kind == "reflection") == (np.linalg.det(R) < 0 and matrix_order(R) == 2)
 
 
 @pytest.mark.parametrize("name,group,order", CASES)

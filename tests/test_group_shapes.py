@@ -19,20 +19,11 @@ from symtorch.geodesics import GeodesicSolver
 from symtorch.groups import check_group
 from symtorch.shapes import symmetry_maps
 
-from shapes import GROUP_SHAPES, bend, star_slab, subdivided_box  # tests/shapes.py
+from shapes import GROUP_SHAPES, bend, matrix_order, star_slab, subdivided_box  # tests/shapes.py
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = {"star5_thin", "box", "arms8"}  # the three cases of issue 18; the rest is slow
-
-
-def _order(R: np.ndarray) -> int:
-    P = np.eye(3)
-    for n in range(1, 41):
-        P = P @ R
-        if np.abs(P - np.eye(3)).max() < 1e-9:
-            return n
-    raise AssertionError("not a finite-order matrix")
 
 
 def _params():
@@ -60,7 +51,7 @@ def test_every_element_of_the_group_is_found(build, group, order, radius):
     agree = (res.p2ps[:, None] == torch.as_tensor(true_maps)[None]).double().mean(-1)  # [G, G]
     for s, j, rev in zip(res.symmetries, agree.argmax(1).tolist(), res.group.reversing.tolist()):
         R = mats[j]
-        assert s.order == _order(R), f"order {s.order} vs true {_order(R)}"
+        assert s.order == matrix_order(R), f"order {s.order} vs true {matrix_order(R)}"
         assert bool(rev) == (np.linalg.det(R) < 0), f"reversing {rev} vs det {np.linalg.det(R):.0f}"
 
 

@@ -11,7 +11,7 @@ from symtorch.orientation import (face_geometry, face_gradients, orientation_agr
 from symtorch.paths import shared_path
 from symtorch.shapes import polar_prism, polar_prism_symmetries, symmetry_maps
 from symtorch.spectrum import eigen_bands
-from shapes import mirror_mesh
+from shapes import mirror_mesh, wobble
 
 F64 = torch.float64
 
@@ -24,12 +24,6 @@ def spectrum_and_wks(verts, faces, k=30, n_wks=8):
     s = laplacian_spectrum(verts, faces, k=k)
     energies, sigma = default_energies(s.evals, n_wks)
     return s, wks(s.evals, s.evecs, energies, sigma)
-
-
-def bend(verts):
-    """A smooth non-rigid displacement: near-isometric, and it breaks the mirror symmetry."""
-    x, y, z = verts.unbind(-1)
-    return verts + 0.08 * torch.stack([torch.sin(2 * y + 0.3), torch.cos(1.7 * z), torch.sin(1.3 * x + 0.5)], -1)
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +39,7 @@ def bent(blob):
     """The blob (x) and its bent copy (y), with the identity as ground truth: operators of both, the
     true map, its mirror flip, and the mirror of y (exact on x, approximate on y)."""
     verts, faces, mirror, sx, Ox = blob
-    vy = bend(verts)
+    vy = wobble(verts)
     sy, dy = spectrum_and_wks(vy, faces)
     Oy = orientation_operators(vy, faces, sy.evecs, sy.mass, dy)
     C_gt = p2p_to_fmap(torch.arange(len(vy)), sx.evecs, sy.mass, sy.evecs)  # [K_y, K_x]
