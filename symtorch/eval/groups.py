@@ -25,7 +25,8 @@ from torch import Tensor
 from .metrics import klc_threshold, score_group
 from ..geodesics import GeodesicSolver
 
-__all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates", "rigid_residual"]
+__all__ = ["dihedral_permutations", "dihedral_orbit_errors", "element_rates", "rigid_residual",
+           "orbit_dihedral_elements", "sparse_distortion", "rigid_maps_from_points"]
 
 
 def dihedral_permutations(n: int) -> Tensor:
@@ -97,3 +98,94 @@ def rigid_residual(verts, p2p) -> float:
     U, _, Vt = np.linalg.svd(x.T @ y)
     res = np.linalg.norm(x @ (U @ Vt) - y, axis=1)
     return float(np.percentile(res, 95) / np.linalg.norm(x.max(0) - x.min(0)))
+
+
+def orbit_dihedral_elements(verts, orbits) -> tuple[list[str], np.ndarray]:
+    """The 2n elements of the dihedral group that cyclic orbit ground truth implies, as permutations
+    of the orbit points (SHREC'07 Watertight: the tables' four orbits of 4 and two fixed points).
+
+    The orbits' points are placed around the axis of the first orbit of size n > 1, the reference
+    orbit (normal of the plane fitted to its points, through their centroid); each point gets a
+    fractional rank ``r`` in that reference orbit's counter-clockwise order (rank interpolated
+    in angle, so a point between two reference points, such as an edge midpoint between two
+    corners, gets a half-integer rank). Element ``rot j`` sends rank ``r`` to ``r + j``,
+    ``ref m`` sends ``r`` to ``m - r`` (``ref 0`` fixes reference points 0 and n/2, ``ref 1``
+    fixes the points half-way after them); each point goes to the member of its own orbit
+    with the nearest rank. Fixed points (orbits of size 1) map to themselves. The file's listing
+    order of each orbit is not used, only the geometry of its points.
+
+    Args:
+        verts: [V, 3]; orbits: list of vertex-id arrays (``benchmarks.load_orbits``).
+
+    Returns:
+        (names [2n], perm [2n, P] long: ``points[perm[e, i]]`` is the image of ``points[i]`` under
+        element e, with ``points = np.concatenate(orbits)``).
+    """
+    x = np.asarray(verts, dtype=np.float64)
+    orbits = [np.asarray(o, dtype=np.int64).reshape(-1) for o in orbits]
+    ref = next(o for o in orbits if o.size > 1)
+    n = ref.size
+    c = x[ref].mean(0)
+    _, _, Vt = np.linalg.svd(x[ref] - c)  # the plane of the reference orbit (a table's corners)
+    e1, e2 = Vt[0], Vt[1]
+
+    def angle(ids):
+        y = x[ids] - c
+        return np.arctan2(y @ e2, y @ e1) % (2 * np.pi)
+
+    ra = np.sort(angle(ref))
+    ra_ext = np.concatenate([ra, [ra[0] + 2 * np.pi]])
+
+    def rank(ids):
+        a = angle(ids)
+        a = np.where(a < ra[0], a + 2 * np.pi, a)
+        return np.interp(a, ra_ext, np.arange(n + 1)) % n
+
+    ranks = [rank(o) for o in orbits]
+    names = [f"rot {j}" for j in range(n)] + [f"ref {m}" for m in range(n)]
+    offsets = np.cumsum([0] + [o.size for o in orbits])
+    perm = np.zeros((2 * n, offsets[-1]), dtype=np.int64)
+    for e in range(2 * n):
+        for k, (o, r) in enumerate(zip(orbits, ranks)):
+            if o.size == 1:
+                perm[e, offsets[k]] = offsets[k]
+                continue
+            g = (r + e) % n if e < n else (e - n - r) % n
+            d = np.abs(g[:, None] - r[None, :])
+            d = np.minimum(d, n - d)
+            perm[e, offsets[k]:offsets[k + 1]] = offsets[k] + d.argmin(1)
+    return names, perm
+
+
+def sparse_distortion(D0: np.ndarray, D1: np.ndarray, radius: float) -> float:
+    """Mean over point pairs of ``|D1 - D0|`` in units of ``radius`` (``D0``: [P, P] geodesic
+    distances among points, ``D1``: among their images; e.g. ``D0[perm][:, perm]``)."""
+    P = D0.shape[0]
+    off = ~np.eye(P, dtype=bool)
+    return float(np.abs(np.asarray(D1) - np.asarray(D0))[off].mean() / radius)
+
+
+def rigid_maps_from_points(verts, points, perm) -> np.ndarray:
+    """Dense vertex maps of sparse ground-truth elements, through the rigid motion they imply.
+
+    For each element (a permutation of ``points``, e.g. from :func:`orbit_dihedral_elements`) the
+    best orthogonal transform about the points' centroid (Procrustes, reflections allowed) of the
+    points onto their images is fitted, and every vertex goes to the nearest vertex of its
+    transformed position. A proxy for the intrinsic element where the shape's symmetry is also
+    extrinsic (a table on its legs), to be measured like any detected map (``isometry_score``).
+
+    Returns:
+        [E, V] long maps.
+    """
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(verts, dtype=np.float64)
+    pts = np.asarray(points, dtype=np.int64)
+    c = x[pts].mean(0)
+    a = x[pts] - c
+    tree = cKDTree(x)
+    out = []
+    for p in np.asarray(perm):
+        U, _, Vt = np.linalg.svd(a.T @ a[p])
+        out.append(tree.query((x - c) @ (U @ Vt) + c)[1])
+    return np.stack(out).astype(np.int64)
