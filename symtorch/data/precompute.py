@@ -696,6 +696,12 @@ class _Spawn:
                 continue
             proc.join(timeout=5)
             code = proc.exitcode
+            # The pool's manager thread may reap the same process at once: its waitpid wins and ours
+            # sees no child (exitcode None) until that thread has stored the status; wait for it.
+            deadline = time.monotonic() + 5
+            while code is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+                code = proc.exitcode
             if code is not None and code < 0:
                 with contextlib.suppress(ValueError):
                     out.append(f"killed by {signal.Signals(-code).name}")
