@@ -59,7 +59,7 @@ from symtorch.losses import fmap_loss, symmetry_equivariance_loss
 from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
-from symtorch.flips import resolve_symmetry_parts
+from symtorch.flips import VoteSmoother, resolve_symmetry_parts
 from symtorch.tta import mirror_pair
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
@@ -220,21 +220,26 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     def p2p_of(C, x, y):
         return fmap_to_p2p(C.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
 
-    def parts(p2p, x, y):  # flipped parts sent through the target's reflection
+    smoothers: dict = {}  # one factorised vote smoother per shape y whose vertices are mapped
+
+    def parts(p2p, j, x, y):  # flipped parts sent through the target's reflection
+        if j not in smoothers:
+            smoothers[j] = VoteSmoother(y["verts"].double(), y["faces"])
         return resolve_symmetry_parts(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
-                                      y["faces"], x["sym_p2p"][1]).p2p
+                                      y["faces"], x["sym_p2p"][1], smoother=smoothers[j]).p2p
 
     for i, j in pairs:
         x, y = data[i], data[j]
-        p2p = p2p_of(model.fmap(coefs[i], coefs[j], x, y), x, y)
-        # both shapes mirrored keep their vertex-id correspondence (symtorch.tta)
-        p2p_tta = p2p_of(0.5 * (model.fmap(coefs[i], coefs[j], x, y)
-                                + model.fmap(mirrored[i], mirrored[j], x, y)), x, y)
+        C = model.fmap(coefs[i], coefs[j], x, y)
+        p2p = p2p_of(C, x, y)
+        # both shapes mirrored keep their vertex-id correspondence: symtorch.tta.mirror_averaged_fmap,
+        # written out so that each shape's coefficients are computed once, not once per pair
+        p2p_tta = p2p_of(0.5 * (C + model.fmap(mirrored[i], mirrored[j], x, y)), x, y)
         # the global choice: the orientation vote of the mapped triangles over the whole shape
         glob = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
                                     y["faces"], y["sym_p2p"]).p2p
-        for post, m in (("", p2p), ("+resolve", glob), ("+parts", parts(p2p, x, y)),
-                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, x, y))):
+        for post, m in (("", p2p), ("+resolve", glob), ("+parts", parts(p2p, j, x, y)),
+                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, j, x, y))):
             scores[post].append(evaluator.score(m, x, y))
     model.train()
     return {post: summarize_pairs(v) for post, v in scores.items()}
