@@ -46,3 +46,18 @@ def test_value_errors(pair):
         resolve_symmetry_parts(mirror, vx, faces, vy, faces, torch.stack([mirror, mirror]))
     with pytest.raises(ValueError, match="p2p_yx index out of range"):
         resolve_symmetry_parts(mirror + 1, vx, faces, vy, faces, mirror)
+
+
+def test_a_reused_smoother_gives_the_same_resolution(pair):
+    from symtorch.flips import VoteSmoother
+
+    vx, faces, vy, mirror = pair
+    part = (vy[:, 0] > 0.35) & (vy[:, 1] > 0.2)
+    p2p = torch.where(part, mirror, torch.arange(len(vx)))
+    smoother = VoteSmoother(vy, faces, scale=4e-3)
+    a = resolve_symmetry_parts(p2p, vx, faces, vy, faces, mirror, scale=4e-3)
+    b = resolve_symmetry_parts(p2p, vx, faces, vy, faces, mirror, smoother=smoother)
+    assert torch.equal(a.p2p, b.p2p) and torch.equal(a.flipped, b.flipped)
+    with pytest.raises(ValueError, match="smoother is for 642 vertices but y has 162"):
+        v2, f2, m2 = mirror_mesh(2)
+        resolve_symmetry_parts(m2, v2, f2, v2, f2, m2, smoother=smoother)
