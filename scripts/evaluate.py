@@ -86,10 +86,9 @@ def point_subset(n_verts: int, subsample: int | None, seed: int) -> np.ndarray:
 
 def lift_to_mesh(p2p_sub: np.ndarray, keep: np.ndarray, verts: np.ndarray) -> np.ndarray:
     """[V] a map of the kept points as a map of every mesh vertex: the image of the nearest kept point."""
-    from scipy.spatial import cKDTree
+    from symtorch.remesh import nearest_vertices
 
-    nearest = cKDTree(verts[keep]).query(verts)[1]
-    return keep[p2p_sub[nearest]]
+    return keep[p2p_sub[nearest_vertices(verts[keep], verts)]]
 
 
 def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,

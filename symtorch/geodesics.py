@@ -23,6 +23,7 @@ gives ``inf`` between connected components, where the heat method gives meaningl
 """
 from __future__ import annotations
 
+import functools
 import logging
 import warnings
 from typing import Literal
@@ -187,10 +188,10 @@ class GeodesicSolver:
         """Whether the solver works on a point cloud (no faces)."""
         return self.faces is None
 
-    @property
+    @functools.cached_property
     def area(self) -> float:
         """Total surface area of the mesh, in the units of ``verts`` squared (of a point cloud: the
-        sum of its Laplacian's lumped mass, ``spectrum.laplacian_matrices``)."""
+        sum of its Laplacian's lumped mass, ``spectrum.laplacian_matrices``); computed once."""
         if self.faces is None:
             from .spectrum import laplacian_matrices
 

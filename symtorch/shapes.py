@@ -265,7 +265,6 @@ def polar_prism(n: int = 6, segments: int = 3, rings: int = 6, cap_rings: int = 
         raise ValueError(f"need n >= 3, segments >= 1, rings >= 2, cap_rings >= 1, got n={n}, "
                          f"segments={segments}, rings={rings}, cap_rings={cap_rings}")
     poly = _polygon(n, segments, radius)  # [N, 2]
-    N = len(poly)
     return outline_prism(poly, height, rings, cap_rings)
 
 

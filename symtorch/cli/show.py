@@ -163,7 +163,6 @@ def _draw_shape(ax, verts, faces, values, R, cmap):
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
     ax.axis("off")
-    return p
 
 
 def _draw_table(ax, table: np.ndarray, labels: list[str]) -> None:

@@ -377,12 +377,9 @@ def reflection_group(symmetries: list[Symmetry], verts, faces) -> tuple[list[Sym
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             rev.append(bool(orientation_reversing(s.p2p, vt, ft)))
-    G = len(symmetries)
-    if G <= 2:  # identity, or identity and one involution: the table is known
-        table = torch.tensor([[0]]) if G == 1 else torch.tensor([[0, 1], [1, 0]])
-        g = group_info(table, torch.tensor(rev))
-    else:
-        g = group_info(torch.stack([s.fmap for s in symmetries]), torch.tensor(rev))
+    # identity, or identity and one involution: the table is known
+    table = torch.tensor([[0]]) if len(symmetries) == 1 else torch.tensor([[0, 1], [1, 0]])
+    g = group_info(table, torch.tensor(rev))
     symmetries = [replace(s, kind=kind_of(int(o), bool(r)), order=int(o))
                   for s, o, r in zip(symmetries, g.orders.tolist(), g.reversing.tolist())]
     return symmetries, g
