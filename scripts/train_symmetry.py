@@ -65,7 +65,7 @@ from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 
 ROOT = Path(__file__).resolve().parent.parent
-RUNS = ("baseline", "augment", "losses", "full")
+RUNS = ("baseline", "augment", "symmetrize", "losses", "full")
 log = logging.getLogger("train_symmetry")
 
 
@@ -127,24 +127,52 @@ def random_rotation(generator: torch.Generator) -> torch.Tensor:
 class Matcher(torch.nn.Module):
     """DiffusionNet features -> spectral coefficients -> regularised functional map."""
 
-    def __init__(self, inp: str, n_wks: int, k: int, k_eig: int, width: int, out: int):
+    def __init__(self, inp: str, n_wks: int, k: int, k_eig: int, width: int, out: int,
+                 symmetrize: bool = False):
         super().__init__()
-        self.inp, self.k = inp, k
+        self.inp, self.k, self.symmetrize = inp, k, symmetrize
         self.features = DiffusionNetFeatures(n_wks if inp == "wks" else 3, out,
                                              hidden_channels=width, k_eig=k_eig)
 
     def coefs(self, s: dict, generator: torch.Generator | None = None) -> torch.Tensor:
+        """[K, D] the spectral coefficients of the shape's features."""
+        return self.project(self.point_features(s, generator), s)
+
+    def project(self, F: torch.Tensor, s: dict) -> torch.Tensor:
+        ev = s["evecs"][:, :self.k].float()
+        return ev.mT @ (s["mass"].float()[:, None] * F)  # [K, D]
+
+    def point_features(self, s: dict, generator: torch.Generator | None = None) -> torch.Tensor:
+        """[V, D] DiffusionNet's features of the shape; with ``symmetrize``, averaged over the
+        shape's reflection group {1, R}: ``(f(x)[v] + f(x')[R(v)]) / 2`` with ``x'`` the mirror
+        image, whose vertex R(v) carries v's label. The features are then mirror-equivariant by
+        construction (those of ``x'`` are those of ``x`` read through R), as an equivariant network
+        would be (group averaging, as in frame averaging)."""
+        F = self._features(s, generator)
+        r = reflection_index(s) if self.symmetrize else None
+        if r is None:
+            return F
+        return 0.5 * (F + self._features(mirror_shape(s), generator)[s["sym_p2p"][r]])
+
+    def _features(self, s: dict, generator: torch.Generator | None) -> torch.Tensor:
         if self.inp == "wks":
             x = s["wks"].float()
         else:
             R = random_rotation(generator) if generator is not None else torch.eye(3, dtype=torch.float64)
             x = (s["verts"].double() @ R.mT).float()
-        F = self.features(s, x)  # [V, D]
-        ev = s["evecs"][:, :self.k].float()
-        return ev.mT @ (s["mass"].float()[:, None] * F)  # [K, D]
+        return self.features(s, x)  # [V, D]
 
     def fmap(self, A_x, A_y, s_x, s_y) -> torch.Tensor:
         return regularized_fmap(A_x, A_y, s_x["evals"][:self.k].float(), s_y["evals"][:self.k].float())
+
+
+def reflection_index(s: dict) -> int | None:
+    """The index of the shape's first orientation-reversing symmetry, or None."""
+    rev = s.get("sym_reverses")
+    if rev is None:
+        return None
+    idx = torch.nonzero(torch.as_tensor(rev)).flatten()
+    return int(idx[0]) if len(idx) else None
 
 
 def gt_fmap(x: dict, y: dict, k: int) -> torch.Tensor:
@@ -163,9 +191,12 @@ def orient_ops(s: dict, k: int) -> torch.Tensor:
 def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Matcher:
     torch.manual_seed(args.seed)
     g = torch.Generator().manual_seed(args.seed)
-    model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out)
+    model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
+                    symmetrize=run == "symmetrize")
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
-    augment = RandomSymmetry(mode="mirror", generator=g) if run != "baseline" else None
+    # a symmetrized network sees a mirror image through its own group average: no augmentation
+    augment = (RandomSymmetry(mode="mirror", generator=g)
+               if run not in ("baseline", "symmetrize") else None)
     t0, k = time.perf_counter(), args.k
     for step in range(args.steps):
         i, j = pairs[int(torch.randint(len(pairs), (1,), generator=g))]
@@ -204,7 +235,7 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
 # ------------------------------------------------------------------------------------- evaluation
 #: Post-processes scored for every run: none, the global orientation vote, the part-wise one, mirror
 #: test-time averaging, and mirror averaging followed by the part-wise vote.
-POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts")
+POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta")
 
 
 @torch.no_grad()
@@ -213,8 +244,14 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     model.eval()
     k = args.k
     ids = {p for pair in pairs for p in pair}
-    coefs = {i: model.coefs(data[i]) for i in ids}
-    mirrored = {i: model.coefs(mirror_shape(data[i])) for i in ids}
+    feats = {i: model.point_features(data[i]) for i in ids}
+    feats_m = {i: model.point_features(mirror_shape(data[i])) for i in ids}
+    coefs = {i: model.project(feats[i], data[i]) for i in ids}
+    mirrored = {i: model.project(feats_m[i], data[i]) for i in ids}
+    # symmetric averaging, shape by shape: the mirror image's features read at the reflected
+    # vertex (the mirror image's vertex R(v) carries v's label) averaged with the shape's own
+    symmetrized = {i: model.project(0.5 * (feats[i] + feats_m[i][data[i]["sym_p2p"][reflection_index(data[i])]]),
+                                    data[i]) for i in ids}
     scores: dict[str, list] = {post: [] for post in POSTS}
 
     def p2p_of(C, x, y):
@@ -238,8 +275,10 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
         # the global choice: the orientation vote of the mapped triangles over the whole shape
         glob = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
                                     y["faces"], y["sym_p2p"]).p2p
+        p2p_stta = p2p_of(model.fmap(symmetrized[i], symmetrized[j], x, y), x, y)
         for post, m in (("", p2p), ("+resolve", glob), ("+parts", parts(p2p, j, x, y)),
-                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, j, x, y))):
+                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, j, x, y)),
+                        ("+stta", p2p_stta)):
             scores[post].append(evaluator.score(m, x, y))
     model.train()
     return {post: summarize_pairs(v) for post, v in scores.items()}
@@ -318,7 +357,8 @@ def main() -> None:
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"
                                          f"_n{args.steps}.pt")
         if args.reuse and saved.exists():  # evaluate a model trained by an earlier call
-            model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out)
+            model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
+                            symmetrize=run == "symmetrize")
             model.load_state_dict(torch.load(saved, weights_only=True))
         else:
             model = train(run, data, train_pairs, args)

@@ -14,30 +14,38 @@ import argparse
 import json
 from pathlib import Path
 
-POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts")
-RUNS = ("baseline", "augment", "augment-pair", "losses", "full")
+from train_symmetry import POSTS, RUNS as TRAINED  # the script beside this one
+
+RUNS = TRAINED[:2] + ("augment-pair",) + TRAINED[2:]  # augment-pair: train_symmetry --mirror pair
 PIPELINE = "augment+tta"
 
 
-def by_seed(rows: dict) -> None:
-    """One line per dataset, regime and seed (the seeds that have every column), then the means and
-    the ratio of the pipeline's mean to the baseline's."""
-    cols = ("baseline", "baseline+tta", "augment", PIPELINE)
+def by_seed(rows: dict, pipeline: str) -> None:
+    """One line per dataset, regime and seed, then per column the mean over the seeds that have it
+    and the baseline, with its ratio to the baseline's mean over the same seeds."""
+    cols = ("baseline", "baseline+tta", "augment", "augment+tta", "augment+stta", "symmetrize")
+    cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
     print("|---|---:|" + "---:|" * len(cols))
     for ds, regime, sym in sorted({(k[0], k[1], k[4]) for k in rows}):
-        seeds = sorted({k[3] for k in rows if (k[0], k[1], k[4]) == (ds, regime, sym)})
-        table = {s: [rows.get((ds, regime, c, s, sym)) for c in cols] for s in seeds}
-        table = {s: r for s, r in table.items() if all(r)}
-        if not table:
+        seeds = sorted(k[3] for k in rows if k[:3] == (ds, regime, "baseline") and k[4] == sym)
+        if not seeds:
             continue
+        table = {s: [rows.get((ds, regime, c, s, sym)) for c in cols] for s in seeds}
         for s, r in table.items():
             print(f"| {ds} {regime} | {s} | " + " | ".join(
-                f"{x['error']:.4f}" + (f" ({100 * x['flipped']:.1f} % flipped)" if x["flipped"] else "")
-                for x in r) + " |")
-        means = [sum(r[c]["error"] for r in table.values()) / len(table) for c in range(len(cols))]
-        print(f"| {ds} {regime} | mean of {len(table)} | " + " | ".join(f"{m:.4f}" for m in means[:-1])
-              + f" | **{means[-1]:.4f} ({means[-1] / means[0]:.2f}x)** |")
+                "–" if x is None else f"{x['error']:.4f}"
+                + (f" ({100 * x['flipped']:.1f} % flipped)" if x["flipped"] else "") for x in r) + " |")
+        cells = []
+        for c, col in enumerate(cols):
+            have = [r for r in table.values() if r[c] is not None]
+            mean = sum(r[c]["error"] for r in have) / len(have) if have else float("nan")
+            base = sum(r[0]["error"] for r in have) / len(have) if have else float("nan")
+            cell = f"{mean:.4f}" + ("" if c == 0 else f" ({mean / base:.2f}x)")
+            cells.append(f"**{cell}**" if col == pipeline else cell)
+        n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))}
+        label = f"mean of {max(n)}" if len(n) == 1 else f"mean ({min(n)}-{max(n)} seeds)"
+        print(f"| {ds} {regime} | {label} | " + " | ".join(cells) + " |")
 
 
 def main() -> None:
@@ -52,12 +60,12 @@ def main() -> None:
             r = json.loads(line)
             rows[(r["dataset"], r["regime"], r["run"], r.get("seed", 0), r.get("symmetries"))] = r
     if args.by_seed:
-        by_seed(rows)
+        by_seed(rows, PIPELINE)
         return
     settings = sorted({k[:2] + k[3:] for k in rows})
     print("| dataset | regime | train shapes | run | error | flipped | +resolve | +parts | +tta | "
-          "+tta+parts | ratio to baseline |")
-    print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
+          "+tta+parts | +stta | ratio to baseline |")
+    print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for ds, regime, seed, sym in settings:
         base = rows.get((ds, regime, "baseline", seed, sym))
         for run in RUNS:

@@ -25,7 +25,7 @@ from torch import Tensor
 
 _CHUNK = 2 ** 24  # elements of the largest per-face intermediate of orientation_operators
 
-__all__ = ["FaceGeometry", "face_geometry", "face_gradients", "faces_to_vertices",
+__all__ = ["FaceGeometry", "face_geometry", "vertex_normals", "face_gradients", "faces_to_vertices",
            "orientation_operators", "orientation_residual", "face_orientation_votes",
            "orientation_agreement", "resolve_symmetry",
            "resolve_symmetry_p2p", "FmapResolution", "P2PResolution"]
@@ -75,6 +75,16 @@ def face_geometry(verts: Tensor, faces: Tensor) -> FaceGeometry:
     e = torch.stack([vf[:, 2] - vf[:, 1], vf[:, 0] - vf[:, 2], vf[:, 1] - vf[:, 0]], 1)  # [F, 3, 3]
     hat = torch.cross(n[:, None, :].expand_as(e), e, dim=-1) / dbl[:, None]
     return FaceGeometry(n, 0.5 * dbl[:, 0], hat)
+
+
+def vertex_normals(verts: Tensor, faces: Tensor, unit: bool = True) -> Tensor:
+    """[V, 3] area-weighted vertex normals: the sum of the adjacent faces' ``cross(b - a, c - a)``
+    (twice their area times their unit normal), scaled to unit length when ``unit``."""
+    faces = torch.as_tensor(faces, device=verts.device).long()
+    vf = verts[faces]  # [F, 3, 3]
+    fn = torch.cross(vf[:, 1] - vf[:, 0], vf[:, 2] - vf[:, 0], dim=-1)
+    vn = torch.zeros_like(verts).index_add_(0, faces.reshape(-1), fn.repeat_interleave(3, 0))
+    return vn / vn.norm(dim=1, keepdim=True).clamp_min(1e-30) if unit else vn
 
 
 def face_gradients(verts: Tensor, faces: Tensor, fields: Tensor,
@@ -315,8 +325,7 @@ def face_orientation_votes(p2p_yx: Tensor, verts_x: Tensor, faces_x: Tensor, ver
     p2p = _check_p2p(torch.as_tensor(p2p_yx, device=verts_x.device), verts_y.shape[0],
                      verts_x.shape[0], "p2p_yx")
     gx, gy = face_geometry(verts_x, faces_x), face_geometry(verts_y, faces_y)
-    vn = torch.zeros_like(verts_x).index_add_(
-        0, faces_x.reshape(-1), (gx.normals * gx.areas[:, None]).repeat_interleave(3, 0))  # [V_x, 3]
+    vn = vertex_normals(verts_x, faces_x, unit=False)  # [V_x, 3]
     unit = (gx.areas.sum() / gy.areas.sum().clamp_min(torch.finfo(verts_y.dtype).tiny)).sqrt()
     fy = faces_y.to(p2p.device)
     edge_y = (verts_y[fy] - verts_y[fy.roll(1, -1)]).norm(dim=-1).amax(-1) * unit  # [F_y] on x's scale

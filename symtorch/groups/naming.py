@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ..orientation import vertex_normals
 from .algebra import (_check_p2p, _check_reversing, _check_table, _generated, _is_table, _orders_np,
                       _subtable, _z2_homs, cayley_table, check_group, element_orders, identity_index,
                       inverses)
@@ -223,8 +224,8 @@ def orientation_score(p2p: Tensor, verts: Tensor, faces: Tensor, *,
     if p2p.shape[-1] != V:
         raise ValueError(f"p2p must be [..., V] = [..., {V}], got {list(p2p.shape)}")
     x = verts
-    fn = torch.linalg.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
-    vn = torch.zeros_like(x).index_add_(0, faces.reshape(-1), fn.repeat_interleave(3, 0))  # [V, 3]
+    fn = torch.linalg.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])  # [F, 3]
+    vn = vertex_normals(x, faces, unit=False)  # [V, 3]
     src_edge = (x[faces] - x[faces.roll(1, -1)]).norm(dim=-1).amax(-1)  # [F]
     img = p2p[..., faces]                                                 # [..., F, 3]
     y = x[img]                                                            # [..., F, 3, 3]
