@@ -60,7 +60,7 @@ from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
 from symtorch.flips import VoteSmoother, resolve_symmetry_parts
-from symtorch.tta import mirror_pair
+from symtorch.tta import mirror_pair, reflection_index, symmetrized_features
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 
@@ -148,11 +148,9 @@ class Matcher(torch.nn.Module):
         image, whose vertex R(v) carries v's label. The features are then mirror-equivariant by
         construction (those of ``x'`` are those of ``x`` read through R), as an equivariant network
         would be (group averaging, as in frame averaging)."""
-        F = self._features(s, generator)
-        r = reflection_index(s) if self.symmetrize else None
-        if r is None:
-            return F
-        return 0.5 * (F + self._features(mirror_shape(s), generator)[s["sym_p2p"][r]])
+        if self.symmetrize:
+            return symmetrized_features(lambda t: self._features(t, generator), s)
+        return self._features(s, generator)
 
     def _features(self, s: dict, generator: torch.Generator | None) -> torch.Tensor:
         if self.inp == "wks":
@@ -164,15 +162,6 @@ class Matcher(torch.nn.Module):
 
     def fmap(self, A_x, A_y, s_x, s_y) -> torch.Tensor:
         return regularized_fmap(A_x, A_y, s_x["evals"][:self.k].float(), s_y["evals"][:self.k].float())
-
-
-def reflection_index(s: dict) -> int | None:
-    """The index of the shape's first orientation-reversing symmetry, or None."""
-    rev = s.get("sym_reverses")
-    if rev is None:
-        return None
-    idx = torch.nonzero(torch.as_tensor(rev)).flatten()
-    return int(idx[0]) if len(idx) else None
 
 
 def gt_fmap(x: dict, y: dict, k: int) -> torch.Tensor:
@@ -250,6 +239,7 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     mirrored = {i: model.project(feats_m[i], data[i]) for i in ids}
     # symmetric averaging, shape by shape: the mirror image's features read at the reflected
     # vertex (the mirror image's vertex R(v) carries v's label) averaged with the shape's own
+    # (symtorch.tta.symmetrized_features, written out to reuse the features computed above)
     symmetrized = {i: model.project(0.5 * (feats[i] + feats_m[i][data[i]["sym_p2p"][reflection_index(data[i])]]),
                                     data[i]) for i in ids}
     scores: dict[str, list] = {post: [] for post in POSTS}

@@ -10,16 +10,24 @@ inputs (its gradient features are orientation-aware) and gives two estimates; th
 two-view ensemble that needs no symmetry at test time. A network never shown mirror images sees the
 mirrored view out of distribution, and averaging with it does harm (BENCHMARKS.md, "Training with
 symmetries").
+
+Symmetric feature averaging (:func:`symmetrized_features`) uses the shape's own reflection R: the
+mirror image x' carries at vertex R(v) the label of v (``RandomSymmetry(mode="mirror")`` composes the
+ground truth so), so a network that learned orientation gives ``f(x')[R(v)] ~ f(x)[v]``, and the
+mean of the two is the network averaged over the shape's reflection group {1, R} (group averaging):
+features that are mirror-equivariant by construction, one shape at a time, in training
+(``scripts/train_symmetry.py``'s ``symmetrize`` run) or at test time on any network.
 """
 from __future__ import annotations
 
 from typing import Callable
 
+import torch
 from torch import Tensor
 
 from .data.symmetry import mirror_shape
 
-__all__ = ["mirror_pair", "mirror_averaged_fmap"]
+__all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_index"]
 
 
 def mirror_pair(x: dict, y: dict, axis: int = 0) -> tuple[dict, dict]:
@@ -43,3 +51,37 @@ def mirror_averaged_fmap(fmap_fn: Callable[[dict, dict], Tensor], x: dict, y: di
     """
     xm, ym = mirror_pair(x, y, axis)
     return 0.5 * (fmap_fn(x, y) + fmap_fn(xm, ym))
+
+
+def reflection_index(sample: dict) -> int | None:
+    """The index in ``sym_p2p`` of the sample's first orientation-reversing symmetry
+    (``sym_reverses``), or None where it has none."""
+    rev = sample.get("sym_reverses")
+    if rev is None:
+        return None
+    idx = torch.nonzero(torch.as_tensor(rev)).flatten()
+    return int(idx[0]) if len(idx) else None
+
+
+def symmetrized_features(feature_fn: Callable[[dict], Tensor], sample: dict, axis: int = 0) -> Tensor:
+    """``(f(x)[v] + f(x')[R(v)]) / 2``: a point-feature network averaged over the shape's reflection.
+
+    Args:
+        feature_fn: the network, a sample -> ``[V, D]`` per-vertex features.
+        sample: with ``verts``, ``sym_p2p [G, V]`` and ``sym_reverses [G]`` (the reflection R is the
+            first orientation-reversing element), and whatever ``feature_fn`` and
+            :func:`symtorch.data.mirror_shape` read.
+        axis: the coordinate negated to make the mirror image x'.
+
+    Returns:
+        [V, D] the averaged features; ``feature_fn(sample)`` unchanged where the sample has no
+        reflection.
+    """
+    F = feature_fn(sample)
+    r = reflection_index(sample)
+    if r is None:
+        return F
+    R = torch.as_tensor(sample["sym_p2p"][r], device=F.device).long()
+    if R.shape != (F.shape[0],):
+        raise ValueError(f"sym_p2p[{r}] must be [V] = [{F.shape[0]}], got {list(R.shape)}")
+    return 0.5 * (F + feature_fn(mirror_shape(sample, axis))[R])

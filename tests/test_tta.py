@@ -1,7 +1,9 @@
 """Mirror test-time averaging (symtorch.tta)."""
+import pytest
 import torch
 
-from symtorch.tta import mirror_averaged_fmap, mirror_pair
+from symtorch.data import mirror_shape
+from symtorch.tta import mirror_averaged_fmap, mirror_pair, reflection_index, symmetrized_features
 from shapes import mirror_mesh
 
 
@@ -32,3 +34,41 @@ def test_the_average_is_over_the_pair_and_its_mirror_image():
     C = mirror_averaged_fmap(fmap_fn, x, y)
     expected = 0.5 * (fmap_fn(x, y) + fmap_fn(*mirror_pair(x, y)))
     assert torch.allclose(C, expected) and not torch.allclose(C, fmap_fn(x, y))
+
+
+def _with_reflection(verts, faces, mirror):
+    s = _sample(verts, faces)
+    s["sym_p2p"] = torch.stack([torch.arange(len(verts)), mirror])
+    s["sym_reverses"] = torch.tensor([False, True])
+    return s
+
+
+def test_symmetrized_features_are_mirror_equivariant():
+    verts, faces, mirror = mirror_mesh(2)
+    x = _with_reflection(verts, faces, mirror)
+
+    def fn(s):  # orientation-aware "network": position and an orientation operator's sign
+        wind = float(s["orient_op"].sum())  # mirror_shape negates orientation operators
+        return torch.cat([s["verts"], torch.full((len(verts), 1), wind, dtype=verts.dtype)], 1)
+
+    F = symmetrized_features(fn, x)
+    # the mirror image read through the exact reflection is the shape itself: f(x')[R] = f(x) in xyz
+    assert torch.allclose(F[:, :3], verts, atol=1e-12)
+    # the orientation term is negated in the mirror image and averages out
+    assert torch.allclose(F[:, 3], torch.zeros(len(verts), dtype=verts.dtype), atol=1e-12)
+    # equivariance: the features of the mirror image are those of the shape read through R
+    Fm = symmetrized_features(fn, mirror_shape(x))
+    assert torch.allclose(Fm, F[mirror], atol=1e-12)
+
+
+def test_symmetrized_features_without_a_reflection_are_the_network_s():
+    verts, faces, mirror = mirror_mesh(2)
+    x = _with_reflection(verts, faces, mirror)
+    x["sym_reverses"] = torch.tensor([False, False])
+    assert reflection_index(x) is None
+    F = symmetrized_features(lambda s: s["verts"][:, :2] * 2, x)
+    assert torch.equal(F, verts[:, :2] * 2)
+    x["sym_reverses"] = torch.tensor([False, True])
+    x["sym_p2p"] = x["sym_p2p"][:, :5]
+    with pytest.raises(ValueError, match="sym_p2p"):
+        symmetrized_features(lambda s: s["verts"], x)
