@@ -392,11 +392,16 @@ def clean_remesh(verts, faces) -> tuple[np.ndarray, np.ndarray]:
     return v[keep_v], new[f].astype(np.int64)
 
 
+def _edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(edges [E, 2] as sorted vertex pairs, the number of faces on each [E])."""
+    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    return np.unique(e, axis=0, return_counts=True)
+
+
 def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     """Vertex loops of the boundary edges (edges in one face), or None where they do not form
     simple loops (a vertex on more than two boundary edges)."""
-    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    u, c = np.unique(e, axis=0, return_counts=True)
+    u, c = _edge_counts(faces)
     b = u[c == 1]
     if b.size == 0:
         return []
@@ -452,8 +457,7 @@ def fill_nonmanifold(verts, faces, project=None, max_rounds: int = 4) -> tuple[n
     n = v.shape[0]
 
     def bad_vertices(f):
-        e = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        u, c = np.unique(e, axis=0, return_counts=True)
+        u, c = _edge_counts(f)
         bad = np.zeros(n, dtype=bool)
         bad[u[c != 2].ravel()] = True
         return bad
@@ -486,9 +490,7 @@ def fill_nonmanifold(verts, faces, project=None, max_rounds: int = 4) -> tuple[n
 
 def _edge_counts_ok(faces: np.ndarray) -> bool:
     """No edge in three or more faces."""
-    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, c = np.unique(e, axis=0, return_counts=True)
-    return bool((c <= 2).all())
+    return bool((_edge_counts(faces)[1] <= 2).all())
 
 
 def remesh_acvd(verts, faces, n_verts: int = 5000, subdivide: int = 0, seed: int = 0,
