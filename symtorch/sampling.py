@@ -29,16 +29,13 @@ def count_components(faces, n_verts: int) -> int:
 
 
 def knn_adjacency(verts, k: int = 8) -> sp.csr_matrix:
-    """[V, V] symmetric k-nearest-neighbour adjacency of a point cloud."""
-    from scipy.spatial import cKDTree
+    """[V, V] symmetric k-nearest-neighbour adjacency (0/1) of a point cloud: the pattern of
+    :func:`symtorch.point_cloud.knn_graph`."""
+    from .point_cloud import knn_graph
 
-    v = to_numpy(verts, np.float64)
-    _, idx = cKDTree(v).query(v, k=min(k + 1, v.shape[0]))
-    i = np.repeat(np.arange(v.shape[0]), idx.shape[1] - 1)
-    j = idx[:, 1:].reshape(-1)
-    A = sp.coo_matrix((np.ones_like(i, dtype=np.float64), (i, j)), shape=(v.shape[0],) * 2).tocsr()
-    A = ((A + A.T) > 0).astype(np.float64)
-    return A.tocsr()
+    A = knn_graph(to_numpy(verts, np.float64), k)
+    A.data[:] = 1.0
+    return A
 
 
 def local_maxima(values, adjacency: sp.csr_matrix, rings: int = 2) -> np.ndarray:

@@ -70,3 +70,15 @@ def test_count_components_ignores_unreferenced_vertices():
     assert count_components(m.faces, V) == 1
     assert count_components(faces, 2 * V) == 2
     assert count_components(m.faces, V + 7) == 1  # 7 vertices no face references
+
+
+def test_knn_adjacency_is_the_symmetric_pattern_of_the_k_nearest():
+    from scipy.spatial import cKDTree
+    from symtorch.sampling import knn_adjacency
+
+    v = np.random.default_rng(0).random((300, 3))
+    A = knn_adjacency(v, k=5)
+    assert (A != A.T).nnz == 0 and set(np.unique(A.data)) == {1.0} and A.diagonal().sum() == 0
+    nn = cKDTree(v).query(v, k=6)[1][:, 1:]
+    assert all(A[i, j] == 1.0 for i in range(300) for j in nn[i])
+    assert (np.diff(A.indptr) >= 5).all()
