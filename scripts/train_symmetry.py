@@ -222,8 +222,10 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
 
 
 # ------------------------------------------------------------------------------------- evaluation
-#: Post-processes scored for every run: none, the global orientation vote, the part-wise one, mirror
-#: test-time averaging, and mirror averaging followed by the part-wise vote.
+#: Post-processes scored for every run: none, the global orientation vote, the part-wise one (with
+#: ``--parts``), mirror test-time averaging (the pair and its mirror image), the same followed by the
+#: part-wise vote (``--parts``), and symmetric feature averaging (each shape's features and its
+#: mirror image's read through the shape's reflection, :func:`symtorch.tta.symmetrized_features`).
 POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta")
 
 
@@ -242,7 +244,7 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     # (symtorch.tta.symmetrized_features, written out to reuse the features computed above)
     symmetrized = {i: model.project(0.5 * (feats[i] + feats_m[i][data[i]["sym_p2p"][reflection_index(data[i])]]),
                                     data[i]) for i in ids}
-    scores: dict[str, list] = {post: [] for post in POSTS}
+    scores: dict[str, list] = {post: [] for post in POSTS if args.parts or "parts" not in post}
 
     def p2p_of(C, x, y):
         return fmap_to_p2p(C.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
@@ -266,9 +268,10 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
         glob = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
                                     y["faces"], y["sym_p2p"]).p2p
         p2p_stta = p2p_of(model.fmap(symmetrized[i], symmetrized[j], x, y), x, y)
-        for post, m in (("", p2p), ("+resolve", glob), ("+parts", parts(p2p, j, x, y)),
-                        ("+tta", p2p_tta), ("+tta+parts", parts(p2p_tta, j, x, y)),
-                        ("+stta", p2p_stta)):
+        maps = {"": p2p, "+resolve": glob, "+tta": p2p_tta, "+stta": p2p_stta}
+        if args.parts:
+            maps.update({"+parts": parts(p2p, j, x, y), "+tta+parts": parts(p2p_tta, j, x, y)})
+        for post, m in maps.items():
             scores[post].append(evaluator.score(m, x, y))
     model.train()
     return {post: summarize_pairs(v) for post, v in scores.items()}
@@ -296,6 +299,8 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--w-equiv", type=float, default=1.0)
     ap.add_argument("--w-orient", type=float, default=1.0)
+    ap.add_argument("--parts", action="store_true",
+                    help="also score the part-wise flip vote (+parts, +tta+parts; slower)")
     ap.add_argument("--n-points", type=int, default=500, help="template points scored per pair")
     ap.add_argument("--max-pairs", type=int, default=100, help="held-out pairs scored (evenly spaced)")
     ap.add_argument("--seed", type=int, default=0)

@@ -53,11 +53,14 @@ def main() -> None:
     ap.add_argument("rows", type=Path, nargs="+")
     ap.add_argument("--by-seed", action="store_true",
                     help="baseline, baseline+tta, augment and the pipeline per seed, and their means")
+    ap.add_argument("--steps", type=int, default=300, help="the rows of runs this long (default 300)")
     args = ap.parse_args()
     rows = {}
     for path in args.rows:
         for line in path.read_text().splitlines():
             r = json.loads(line)
+            if r.get("steps", 300) != args.steps:
+                continue
             rows[(r["dataset"], r["regime"], r["run"], r.get("seed", 0), r.get("symmetries"))] = r
     if args.by_seed:
         by_seed(rows, PIPELINE)
