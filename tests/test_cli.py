@@ -70,8 +70,10 @@ def test_cli_detect_json_schema(tmp_path, capsys):
     assert d["symmetries"][0]["kind"] == "identity"
     assert d["symmetries"][0]["p2p"] == list(range(V))
     for s in d["symmetries"]:
-        assert set(s) >= {"kind", "order", "score", "p2p"}
+        assert set(s) >= {"kind", "order", "score", "confidence", "uncertain", "p2p"}
         assert len(s["p2p"]) == V and min(s["p2p"]) >= 0 and max(s["p2p"]) < V
+        assert 0 <= s["confidence"] <= 1 and s["uncertain"] == (s["confidence"] < d["min_confidence"])
+    assert d["uncertain"] == any(s["uncertain"] for s in d["symmetries"])
     assert d["group"]["order"] == len(d["symmetries"]) == 2
     assert "spectrum" in d["timings"]
     z = np.load(mats)

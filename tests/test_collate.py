@@ -99,3 +99,13 @@ def test_pad_collate_on_device(cuda_device):
         if torch.is_tensor(val):
             assert batch[key].device == torch.device(device), key
             assert torch.equal(batch[key].cpu(), val), key
+
+
+def test_pad_collate_confidence_and_uncertain_share_the_group_mask():
+    a, b = shape(1, with_mirror=False), shape(2)
+    a.update(sym_confidence=torch.tensor([1.0], dtype=torch.float64), sym_uncertain=torch.tensor([False]))
+    b.update(sym_confidence=torch.tensor([1.0, 0.3], dtype=torch.float64), sym_uncertain=torch.tensor([False, True]))
+    batch = pad_collate([a, b])
+    assert batch["sym_confidence"].tolist() == [[1.0, 0.0], [1.0, 0.3]]
+    assert batch["sym_uncertain"].tolist() == [[False, False], [False, True]]
+    assert "sym_confidence_mask" not in batch and "sym_uncertain_mask" not in batch

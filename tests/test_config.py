@@ -11,6 +11,8 @@ def test_configs_are_frozen_with_the_benchmarked_defaults():
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.k_refine = 40
     assert (cfg.k, cfg.k_refine, cfg.group_tol) == (6, 100, 0.06)
+    # the threshold BENCHMARKS.md "Confidence" reports, and the second opinion it needs
+    assert cfg.min_confidence == 0.37 and cfg.reflection.second_opinion
     assert cfg.reflection == ReflectionConfig() and cfg.group == GroupConfig()
 
 

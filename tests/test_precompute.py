@@ -17,6 +17,7 @@ import torch
 import symtorch.data.dataset as dataset_module
 from symtorch import cli, shapes
 from symtorch.data import MeshDataset
+from symtorch.detect import DetectConfig
 from symtorch.io import write_mesh
 from symtorch.data.precompute import (FAILURES, SETTINGS, default_pre_transform, done_names,
                                  find_meshes, open_dataset, precompute)
@@ -510,3 +511,24 @@ def test_mesh_edited_behind_a_restored_mtime_is_reprocessed(tmp_path):
     np.testing.assert_array_equal(ds.get(0)["verts"].numpy(), read_mesh(mesh).verts.astype(np.float32))
     touched = MeshDataset(src, processed_dir=cache)  # contents unchanged since: nothing to redo
     assert touched.process() == []
+
+
+def test_on_uncertain_reaches_the_detector_the_settings_and_the_manifest(tmp_path, capsys):
+    make_tree(tmp_path / "src", n=1, subdivisions=2)
+    assert cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "out"), "--k", "40",
+                     "--k-refine", "20", "--on-uncertain", "flag"]) == 0
+    s = json.loads((tmp_path / "out" / SETTINGS).read_text())
+    assert s["on_uncertain"] == "flag" and s["default_pre_transform"] is True
+    assert "on_uncertain='flag'" in s["key"]["pre_transform"]
+    assert repr(default_pre_transform(40, True, 0, 20)) == repr(default_pre_transform(40, True, 0, 20, "keep"))
+    sample = open_dataset(tmp_path / "src", tmp_path / "out")[0]
+    G = sample["sym_p2p"].shape[0]
+    assert sample["sym_uncertain"].shape == sample["sym_confidence"].shape == (G,)
+    flagged = bool(sample["sym_uncertain"].any())
+    assert flagged == bool((sample["sym_confidence"][1:] < DetectConfig().min_confidence).any())
+    entry = json.loads((tmp_path / "out" / "meta.json").read_text())["files"]["m0"]
+    assert entry["uncertain"] is flagged
+    assert ("1 uncertain" in capsys.readouterr().err) is flagged
+    with pytest.raises(SystemExit):  # argparse: not one of keep, flag, drop
+        cli.main(["precompute", str(tmp_path / "src"), str(tmp_path / "o2"), "--on-uncertain", "skip"])
+    assert "invalid choice: 'skip'" in capsys.readouterr().err

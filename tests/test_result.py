@@ -1,5 +1,6 @@
 """symtorch.detect.result: the result record, its JSON form, and the typed diagnostics."""
 import json
+from dataclasses import replace
 
 import torch
 
@@ -51,3 +52,29 @@ def test_diagnostics_as_a_plain_dict():
     assert d["group_path"] == {"name": "Cs", "order": 2, "reason": group.reason}
     g = Diagnostics("group", group=group).to_dict()
     assert g["path"] == "group" and g["m"] == 2 and "n_clusters" not in g  # stages that did not run
+
+
+def test_confidence_and_uncertain_in_the_result_and_its_json():
+    res = _result()
+    identity, refl = res.symmetries
+    assert refl.confidence == refl.score == 0.9 and not refl.uncertain  # no confidence given: the score
+    assert not res.uncertain and res.min_confidence is None
+    flagged = replace(res, symmetries=[identity, replace(refl, confidence=0.2, uncertain=True)],
+                      min_confidence=0.5)
+    assert flagged.uncertain
+    torch.testing.assert_close(flagged.confidences, torch.tensor([1.0, 0.2], dtype=torch.float64))
+    d = json.loads(json.dumps(flagged.to_dict()))
+    assert d["uncertain"] is True and d["min_confidence"] == 0.5
+    assert [s["confidence"] for s in d["symmetries"]] == [1.0, 0.2]
+    assert [s["uncertain"] for s in d["symmetries"]] == [False, True]
+    assert [e["uncertain"] for e in d["group"]["elements"]] == [False, True]
+
+
+def test_agreement_and_second_opinion_in_the_diagnostics_dict():
+    refl = ReflectionDiagnostics(n_extrema=5, n_seeds=12, n_candidates=3, k0=[6], k_refine=100,
+                                 candidate_scores=[0.01], trials=[Trial(-0.95, 0.3)], chosen=(1, 6),
+                                 checks=Checks(0.9, 0.3, 0.5, -0.95, 0.1, True, 0.05),
+                                 second_chosen=(0, 6), agreement=(0.25, 0.5))
+    d = Diagnostics("reflection", reflection=refl).to_dict()
+    assert d["second_chosen"] == (0, 6) and d["agreement"] == [0.25, 0.5]
+    assert d["involution_error"] == 0.05

@@ -314,3 +314,44 @@ def test_augmentations_on_device(sym_sample, cls, cuda_device):
     out = apply_symmetry(dict(on_dev, sym_p2p=rough), 1, mode="mirror")
     assert out["corr"].device == out["faces"].device == torch.device(device)
     assert torch.equal(out["corr"].cpu(), rough[1].cpu()[sample["corr"]])
+
+
+@pytest.fixture(scope="module")
+def mirror_spectrum_sample():
+    verts, faces, mirror = mirror_mesh(subdivisions=3)
+    return Compose([NormalizeArea(), ComputeSpectrum(k=40)])({"verts": verts, "faces": faces}), mirror
+
+
+DETECT_SMALL = dict(k=12, k_refine=24, n_samples=300)
+
+
+@pytest.mark.parametrize("on_uncertain", ["keep", "flag", "drop"])
+@pytest.mark.parametrize("min_confidence", [0.0, 1.5])  # nothing, everything below it
+def test_detect_symmetries_on_uncertain(mirror_spectrum_sample, on_uncertain, min_confidence):
+    sample, mirror = mirror_spectrum_sample
+    out = DetectSymmetries(on_uncertain=on_uncertain, min_confidence=min_confidence,
+                           **DETECT_SMALL)(sample)
+    msg = f"on_uncertain={on_uncertain}, min_confidence={min_confidence}"
+    dropped = on_uncertain == "drop" and min_confidence > 1
+    G = out["sym_p2p"].shape[0]
+    assert G == (1 if dropped else 2), msg
+    for key in ("sym_score", "sym_confidence", "sym_reverses"):
+        assert out[key].shape == (G,), f"{key}: {msg}"
+    assert out["sym_fmap"].shape[0] == G
+    conf = out["sym_confidence"]
+    assert ((conf >= 0) & (conf <= 1)).all() and conf[0] == 1, f"{conf.tolist()}: {msg}"
+    assert torch.equal(out["sym_p2p"][0], torch.arange(sample["verts"].shape[0]))
+    if not dropped:
+        assert (out["sym_p2p"][1] == mirror).double().mean() > 0.9, msg
+    if on_uncertain == "flag":
+        assert out["sym_uncertain"].tolist() == [False, min_confidence > 1], msg
+    else:
+        assert "sym_uncertain" not in out, msg
+
+
+def test_detect_symmetries_on_uncertain_is_checked_and_in_the_repr():
+    with pytest.raises(ValueError, match="on_uncertain must be one of 'keep', 'flag', 'drop', got 'skip'"):
+        DetectSymmetries(on_uncertain="skip")
+    assert repr(DetectSymmetries(on_uncertain="keep")) == "DetectSymmetries(seed=0)"
+    assert repr(DetectSymmetries(on_uncertain="drop", min_confidence=0.6)) == \
+        "DetectSymmetries(seed=0, on_uncertain='drop', min_confidence=0.6)"

@@ -56,3 +56,18 @@ def test_involution_distortion_needs_no_solve_and_tracks_the_isometry_score(mirr
     assert d_half > 0.5 and d_half == pytest.approx(d_half_images, rel=0.5)
     # a map that moves every sample onto one point is no involution either
     assert involution_distortion(fields, S, torch.zeros(len(v), dtype=torch.long))[1] > 0.5
+
+
+def test_involution_error_is_zero_for_an_involution_and_large_for_a_drift(mirror3):
+    from symtorch.detect.verification import involution_error
+
+    v, f, mirror = mirror3
+    v = v / math.sqrt(GeodesicSolver(v, f).area)
+    solver = GeodesicSolver(v, f)
+    S = farthest_point_sampling(v, 24)
+    fields = solver.distances_from(S)
+    assert involution_error(fields, S, mirror) < 0.05  # g(g(s)) = s up to the heat method's error
+    assert involution_error(fields, S, torch.arange(len(v))) < 0.05
+    # a map that sends every vertex a quarter of the way round the list is no involution
+    drift = torch.roll(torch.arange(len(v)), len(v) // 4)
+    assert involution_error(fields, S, drift) > 1.0

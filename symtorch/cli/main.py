@@ -197,7 +197,8 @@ def _group_line(out: dict) -> str:
     if out.get("continuous"):
         return ("continuous symmetry (a surface of revolution or a sphere): no finite group; only the "
                 "identity is returned")
-    names = ", ".join(f"{s['kind']}({s['score']:.2f})" for s in out["symmetries"])
+    names = ", ".join(f"{s['kind']}({s.get('confidence', s['score']):.2f}"
+                      f"{', uncertain' if s.get('uncertain') else ''})" for s in out["symmetries"])
     return f"group {out['group'].get('name')} of order {out['group'].get('order')}: {names}"
 
 
@@ -213,11 +214,16 @@ def detect_summary(out: dict) -> str:
                        "only the identity is returned"]
     else:
         lines = [f"{head}, group {group.get('name')} of order {group.get('order')}",
-                 f"  {'#':>2}  {'':<4} {'kind':<15} {'order':>5}  {'score':>5}  {'inverse':>7}"]
+                 f"  {'#':>2}  {'':<4} {'kind':<15} {'order':>5}  {'score':>5}  {'conf':>5}  {'inverse':>7}"]
         inverses = group.get("inverses", [])
         for i, (s, name) in enumerate(zip(syms, labels)):
             inv = labels[inverses[i]] if i < len(inverses) and inverses[i] >= 0 else "-"
-            lines.append(f"  {i:>2}  {name:<4} {s['kind']:<15} {s['order']:>5}  {s['score']:>5.2f}  {inv:>7}")
+            conf = s.get("confidence", s["score"])
+            lines.append(f"  {i:>2}  {name:<4} {s['kind']:<15} {s['order']:>5}  {s['score']:>5.2f}  "
+                         f"{conf:>5.2f}  {inv:>7}{'  uncertain' if s.get('uncertain') else ''}")
+        if out.get("uncertain"):
+            lines.append(f"  uncertain: a confidence below min_confidence = {out.get('min_confidence')}; "
+                         "the map may be a competing near-symmetry")
     t = out["timings"]
     stages = ", ".join(f"{k} {v:.2f}" for k, v in t.items() if k != "total")
     lines.append(f"time {t.get('total', 0.0):.2f} s ({stages})")

@@ -22,7 +22,8 @@ def _cmd_precompute(args) -> int:
     s = precompute(args.src, args.out, k=args.k, detect=args.detect, k_refine=args.k_refine,
                    workers=args.workers,
                    dtype=_DTYPES[args.dtype], ground_truth=gt, seed=args.seed,
-                   progress=not args.quiet, dist_timeout_min=args.dist_timeout)
+                   progress=not args.quiet, dist_timeout_min=args.dist_timeout,
+                   on_uncertain=args.on_uncertain)
     who = f"rank {s.rank}/{s.world_size}: " if s.world_size > 1 else ""
     print(f"symtorch: precompute: {who}{s.line()}", file=sys.stderr, flush=True)
     ranks = s.ranks
@@ -60,6 +61,10 @@ def register_cli(subparsers) -> None:
     p.add_argument("--ground-truth", choices=["none", "template", "vts"], default="none",
                    help="ground-truth correspondences to store (see MeshDataset)")
     p.add_argument("--seed", type=int, default=0, help="seed of the detector")
+    p.add_argument("--on-uncertain", choices=["keep", "flag", "drop"], default="keep",
+                   help="a shape whose detected symmetry is uncertain (confidence below the "
+                        "detector's min_confidence): keep it as detected (default), flag it "
+                        "(sym_uncertain), or drop its symmetries (the identity alone)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true",
                    help="exit with status 1 when some meshes failed (default 0: they are listed)")

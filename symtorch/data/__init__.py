@@ -21,7 +21,12 @@ key            shape        meaning (who writes it)
                             of vertex i (:class:`DetectSymmetries`, :class:`SetSymmetries`)
 ``sym_fmap``   [G, K, K]    their matrices in this sample's basis, pull-back convention (ALGORITHM
                             §2): ``evecs[sym_p2p[g]] ≈ evecs @ sym_fmap[g]``
-``sym_score``  [G]          detector confidence of each element (:class:`DetectSymmetries`)
+``sym_score``  [G]          distortion score ``exp(-distortion^2)`` of each element
+                            (:class:`DetectSymmetries`)
+``sym_confidence`` [G]      detector confidence of each element, in [0, 1]: its ranking separates
+                            right maps from wrong ones (:class:`DetectSymmetries`)
+``sym_uncertain`` [G] bool  confidence below the detector's ``min_confidence``
+                            (:class:`DetectSymmetries` with ``on_uncertain="flag"``)
 ``sym_reverses`` [G] bool   whether each element reverses orientation (reflections,
                             rotoreflections; :class:`DetectSymmetries`, :class:`SetSymmetries`,
                             :class:`SymmetryFromCorrespondence`)

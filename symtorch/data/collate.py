@@ -13,7 +13,7 @@ __all__ = ["pad_collate", "pad_stack"]
 #: dim-0 length group of a key -> the mask that covers it
 _MASK_OF = {"verts": "mask", "faces": "faces_mask", "corr": "corr_mask", "corr_sym": "corr_mask",
             "sym_p2p": "sym_mask", "sym_fmap": "sym_mask", "sym_score": "sym_mask",
-            "sym_reverses": "sym_mask"}
+            "sym_confidence": "sym_mask", "sym_uncertain": "sym_mask", "sym_reverses": "sym_mask"}
 
 
 def _pad_value(t: Tensor):
@@ -58,8 +58,9 @@ def pad_collate(batch: Sequence[dict]) -> dict:
       ``hks``, ...). Padded vertices have ``mass`` 0 and ``evecs`` rows 0, so spectral projections
       ``evecs.mT @ (mass[..., None] * f)`` need no masking;
     - ``faces_mask [B, F]``, ``corr_mask [B, N]`` (``corr``, ``corr_sym``), ``sym_mask [B, G]``
-      (``sym_p2p``, ``sym_fmap``, ``sym_score``, ``sym_reverses``; padded group elements have zero
-      matrices, vertex maps of -1 and ``sym_reverses`` False);
+      (``sym_p2p``, ``sym_fmap``, ``sym_score``, ``sym_confidence``, ``sym_uncertain``,
+      ``sym_reverses``; padded group elements have zero matrices, vertex maps of -1, confidence 0
+      and ``sym_reverses``/``sym_uncertain`` False);
     - ``<key>_mask`` for any other key whose dim-0 length varies.
 
     Nested dicts (the ``x``/``y`` of :class:`~symtorch.data.PairDataset`) are collated recursively;

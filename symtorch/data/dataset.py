@@ -187,7 +187,7 @@ def read_meta(processed_dir: Path) -> dict | None:
     """``processed_dir/meta.json`` (``{"key": ..., "files": {name: entry}}``), None if absent or bad.
 
     An entry is ``{"stamp": file_stamp(mesh), "mesh": its SHA-256, "sha256": SHA-256 of the .pt,
-    "bytes": its size}``.
+    "bytes": its size}``; ``symtorch precompute --on-uncertain flag`` adds ``"uncertain"`` (bool).
     """
     try:
         meta = json.loads((Path(processed_dir) / "meta.json").read_text())

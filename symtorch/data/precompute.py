@@ -19,6 +19,10 @@ Properties:
   of its ``.pt`` (which carries the key and the mesh hash too). A mesh counts as done only when all
   of them verify: a truncated, emptied, damaged or copied-in ``.pt``, or a mesh edited behind a
   restored modification time, is processed again (with a warning for a damaged ``.pt``).
+- **uncertain symmetries**: ``--on-uncertain flag`` gives each sample ``sym_uncertain`` and marks
+  the shapes whose detected symmetry is uncertain (confidence below the detector's
+  ``min_confidence``) ``"uncertain": true`` in ``meta.json``, counted in the summary line;
+  ``--on-uncertain drop`` caches the identity alone for them (``DetectSymmetries``).
 - **bad meshes** are skipped: one JSON line ``{"file", "error", "reason"}`` per mesh in
   ``OUT/failures.jsonl``; the file lists exactly the meshes still failing after the latest run.
 - **deterministic**: every pool has one thread in every process (torch, BLAS: see
@@ -67,7 +71,7 @@ from pathlib import Path
 
 import torch
 
-from ..io import WriteError, _one_line, atomic_write
+from ..io import WriteError, _one_line, _write_error, atomic_write
 from ..threads import limit_threads
 from .dataset import (MESH_SUFFIXES, MeshDataset, _natural_key, cache_key, cache_problem,
                       process_entry, read_meta, write_meta)
@@ -92,7 +96,7 @@ _FLUSH_SHARE = 0.05  # at most this share of the time goes to rewriting meta.jso
 
 
 def default_pre_transform(k: int = 64, detect: bool = True, seed: int = 0,
-                          k_refine: int | None = None) -> Compose:
+                          k_refine: int | None = None, on_uncertain: str = "keep") -> Compose:
     """``Compose([NormalizeArea(), ComputeSpectrum(k), ComputeDescriptors(), DetectSymmetries(seed)])``.
 
     Args:
@@ -103,11 +107,13 @@ def default_pre_transform(k: int = 64, detect: bool = True, seed: int = 0,
             the ``k`` cached eigenpairs the detector reuses: at the default ``k=64`` it refines in
             ~56). ``k >= 108`` gives the detector its full default basis (lower dense error:
             TOSCA_Isometric 39.5 -> 33.4, SCAPE 45.4 -> 44.6 x1e-3) at ~0.45 s more a 12.5K mesh.
+        on_uncertain: what a shape whose symmetry is uncertain gets (``DetectSymmetries``):
+            ``"keep"``, ``"flag"`` (``sym_uncertain``) or ``"drop"`` (the identity alone).
     """
     transforms = [NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors()]
     if detect:
-        transforms.append(DetectSymmetries(seed=seed) if k_refine is None
-                          else DetectSymmetries(seed=seed, k_refine=k_refine))
+        kw = {} if k_refine is None else {"k_refine": k_refine}
+        transforms.append(DetectSymmetries(seed=seed, on_uncertain=on_uncertain, **kw))
     return Compose(transforms)
 
 
@@ -141,11 +147,14 @@ class Summary:
     rank: int = 0
     world_size: int = 1
     failures: list = field(default_factory=list)  # [(file, reason)]
+    uncertain: list = field(default_factory=list)  # files processed now whose symmetry is uncertain
+    #                                                (on_uncertain="flag")
     ranks: list = field(default_factory=list)     # rank 0 under torchrun: every rank's summary
 
     def line(self) -> str:
         rate = 60.0 * self.done / self.seconds if self.seconds > 0 else 0.0
-        return (f"{self.done} done, {self.skipped} already done, {self.failed} failed, of "
+        flagged = f", {len(self.uncertain)} uncertain" if self.uncertain else ""
+        return (f"{self.done} done{flagged}, {self.skipped} already done, {self.failed} failed, of "
                 f"{self.total} in {_hms(self.seconds)} ({rate:.1f} meshes/min, peak "
                 f"{self.peak_rss_mb:.0f} MB per process)")
 
@@ -193,8 +202,10 @@ def _run_item(raw: str, out: str) -> dict:
     try:
         with warnings.catch_warnings(record=True) as caught, limit_threads(1):
             warnings.simplefilter("always")
-            _, res["entry"] = process_entry(raw, out, _WORKER["pre_transform"], _WORKER["dtype"],
-                                            _WORKER["ground_truth"])
+            sample, res["entry"] = process_entry(raw, out, _WORKER["pre_transform"], _WORKER["dtype"],
+                                                 _WORKER["ground_truth"])
+            if "sym_uncertain" in sample:  # on_uncertain="flag": meta.json says which shapes are
+                res["entry"]["uncertain"] = bool(sample["sym_uncertain"].any())
         res.update(ok=True, warnings=sorted({_one_line(w.message) for w in caught}))
     except WriteError as e:  # the output folder, not the mesh: the run stops (read-only, full)
         res.update(ok=False, fatal=True, error="WriteError", reason=str(e))
@@ -240,8 +251,7 @@ def _locked(path: Path):
     try:
         fh = open(path, "a+")
     except OSError as e:
-        raise WriteError(e.errno or 0, f"cannot write {path}: "
-                                       f"{(e.strerror or type(e).__name__).lower()}") from None
+        raise _write_error(path, e) from None
     with fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
         try:
@@ -333,8 +343,7 @@ class _Recorder:
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as e:
-            raise WriteError(e.errno or 0, f"cannot write {self.out / FAILURES}: "
-                                           f"{(e.strerror or type(e).__name__).lower()}") from None
+            raise _write_error(self.out / FAILURES, e) from None
 
     def flush(self) -> None:
         t0 = time.perf_counter()
@@ -366,7 +375,8 @@ def _is_done(item: _Item, meta: dict | None, key: dict, warn: bool = False) -> b
 def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, detect: bool = True,
                k_refine: int | None = None, workers: int = 1, dtype: torch.dtype = torch.float32, ground_truth: str | None = None,
                seed: int = 0, pre_transform: Callable[[dict], dict] | None = None,
-               progress: bool = True, dist_timeout_min: float = 120.0) -> Summary:
+               progress: bool = True, dist_timeout_min: float = 120.0,
+               on_uncertain: str = "keep") -> Summary:
     """Process every mesh under ``src`` into ``MeshDataset`` caches under ``out`` (see module doc).
 
     Args:
@@ -380,6 +390,10 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
         pre_transform: a deterministic transform to cache instead of the default.
         progress: draw a progress bar on stderr.
         dist_timeout_min: under torchrun, how long a rank waits for the others at the end.
+        on_uncertain: ``"keep"``, ``"flag"`` or ``"drop"``: what a shape whose detected symmetry
+            is uncertain gets (``DetectSymmetries``); ``"flag"`` also marks such shapes
+            ``"uncertain": true`` in their ``meta.json`` entry and lists those processed now in
+            ``Summary.uncertain``.
 
     Returns:
         Summary of this rank (under torchrun, rank 0's ``failures`` lists every rank's).
@@ -398,7 +412,7 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
     if ground_truth not in (None, "template", "vts"):
         raise ValueError(f"ground_truth must be None, 'template' or 'vts', got {ground_truth!r}")
     if pre_transform is None:
-        pre_transform = default_pre_transform(k, detect, seed, k_refine)
+        pre_transform = default_pre_transform(k, detect, seed, k_refine, on_uncertain)
     rank, world = _dist_env()
     t0 = time.perf_counter()
     files = find_meshes(src, exclude=out)
@@ -409,18 +423,20 @@ def precompute(src: str | os.PathLike, out: str | os.PathLike, *, k: int = 64, d
         _watch_agent(rank)
     with _run_lock(out, _run_id(world)):
         return _precompute_locked(src, out, files, k, detect, k_refine, workers, dtype, ground_truth,
-                                  seed, pre_transform, progress, dist_timeout_min, rank, world, t0)
+                                  seed, pre_transform, progress, dist_timeout_min, rank, world, t0,
+                                  on_uncertain)
 
 
 def _precompute_locked(src, out, files, k, detect, k_refine, workers, dtype, ground_truth, seed,
-                       pre_transform, progress, dist_timeout_min, rank, world, t0) -> Summary:
+                       pre_transform, progress, dist_timeout_min, rank, world, t0,
+                       on_uncertain="keep") -> Summary:
     key = cache_key(pre_transform, dtype, ground_truth)
     if rank == 0:
         settings = {"src": str(src.resolve()), "k": k, "detect": detect, "seed": seed,
-                    "k_refine": k_refine,
+                    "k_refine": k_refine, "on_uncertain": on_uncertain,
                     "dtype": str(dtype).removeprefix("torch."), "ground_truth": ground_truth,
                     "default_pre_transform": repr(pre_transform) == repr(
-                        default_pre_transform(k, detect, seed, k_refine)), "key": key}
+                        default_pre_transform(k, detect, seed, k_refine, on_uncertain)), "key": key}
         atomic_write(out / SETTINGS, lambda tmp: Path(tmp).write_text(json.dumps(settings, indent=1)))
     if world == 1:
         _remove_temporaries(out)  # this run holds the folder alone: left by a killed run
@@ -472,6 +488,9 @@ def _precompute_locked(src, out, files, k, detect, k_refine, workers, dtype, gro
         if res["ok"]:
             summary.done += 1
             rec.success(item, res["entry"])
+            if res["entry"].get("uncertain"):
+                summary.uncertain.append(item.rel)
+                log.info("%s: uncertain symmetry (confidence below min_confidence)", item.rel)
             for w in res.get("warnings", []):
                 log.info("%s", w)
         else:
@@ -549,8 +568,7 @@ def _run_lock(out: Path, run_id: str):
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as e:
-        raise WriteError(e.errno or 0, f"cannot write {path}: "
-                                       f"{(e.strerror or type(e).__name__).lower()}") from None
+        raise _write_error(path, e) from None
     try:
         with _locked(out / LOCK):
             try:
@@ -573,8 +591,7 @@ def _run_lock(out: Path, run_id: str):
                     os.ftruncate(fd, 0)
                     os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
                 except OSError as e:
-                    raise WriteError(e.errno or 0, f"cannot write {path}: "
-                                                   f"{(e.strerror or type(e).__name__).lower()}") from None
+                    raise _write_error(path, e) from None
                 fcntl.flock(fd, fcntl.LOCK_SH)  # the other ranks of this run join it
             elif free is False:
                 if holder.get("run") != run_id:
@@ -861,6 +878,7 @@ def open_dataset(src: str | os.PathLike, out: str | os.PathLike, folder: str = "
     if not names:
         raise FileNotFoundError(f"{Path(out) / folder}: no precomputed meshes")
     return MeshDataset(Path(src) / folder,
-                       default_pre_transform(s["k"], s["detect"], s["seed"], s.get("k_refine")),
+                       default_pre_transform(s["k"], s["detect"], s["seed"], s.get("k_refine"),
+                                             s.get("on_uncertain", "keep")),
                        transform, processed_dir=Path(out) / folder, names=names,
                        ground_truth=s["ground_truth"], dtype=_DTYPES[s["dtype"]])

@@ -27,7 +27,7 @@ from ..maps import p2p_to_fmap
 from ..procrustes import block_project
 from ..spectrum import band_index, eigen_bands, laplacian_spectrum
 
-__all__ = ["VERTEX_FIELDS", "INDEX_FIELDS", "Compose", "NormalizeArea", "ComputeSpectrum",
+__all__ = ["VERTEX_FIELDS", "INDEX_FIELDS", "ON_UNCERTAIN", "Compose", "NormalizeArea", "ComputeSpectrum",
            "ComputeDescriptors", "DetectSymmetries", "SetSymmetries", "RandomEigenSigns",
            "RandomBandRotation", "change_basis", "symmetry_fmaps", "bands_from_index"]
 
@@ -202,6 +202,8 @@ class ComputeDescriptors:
                 f"normalize={self.normalize})")
 
 
+#: What :class:`DetectSymmetries` does with an uncertain symmetry.
+ON_UNCERTAIN = ("keep", "flag", "drop")
 #: ``Symmetry.kind`` values of orientation-reversing elements.
 _REVERSING = ("reflection", "rotoreflection")
 
@@ -221,18 +223,35 @@ class DetectSymmetries:
     present (``ComputeSpectrum`` before it). ``sym_p2p`` holds the detected vertex maps, identity first;
     ``sym_fmap`` their matrices in the *sample's* basis, recomputed from the maps with
     :func:`symmetry_fmaps` (block-projected on the sample's bands), so that they match ``evecs`` whatever
-    basis size the detector refined in. ``sym_score [G]`` holds the detector's confidences and
-    ``sym_reverses [G]`` whether each element reverses orientation (its ``Symmetry.kind`` is
-    ``'reflection'`` or ``'rotoreflection'``).
+    basis size the detector refined in. ``sym_score [G]`` holds each element's distortion score
+    (``Symmetry.score``), ``sym_confidence [G]`` its confidence (``Symmetry.confidence``: the one
+    whose ranking separates right maps from wrong ones) and ``sym_reverses [G]`` whether it reverses
+    orientation (its ``Symmetry.kind`` is ``'reflection'`` or ``'rotoreflection'``).
+
+    A symmetry whose confidence is below the detector's ``min_confidence`` (a ``DetectConfig``
+    field, passed through ``**kwargs``) is *uncertain*; ``on_uncertain`` says what the sample gets:
+
+    - ``"keep"``: every element, as detected;
+    - ``"flag"``: every element, and ``sym_uncertain [G]`` bool marking the uncertain ones;
+    - ``"drop"``: where any element is uncertain, the identity alone (``G = 1``): a wrong map fed to
+      augmentation or an equivariance loss teaches the wrong thing, no map teaches nothing.
 
     Args:
         seed: seed of the generator handed to the detector where it takes one (precompute must be
             deterministic).
-        **kwargs: keywords of ``detect_symmetries`` (``k``, ``k_refine``, ``mode``, ``min_score``, ...).
+        on_uncertain: ``"keep"``, ``"flag"`` or ``"drop"``, see above.
+        **kwargs: keywords of ``detect_symmetries`` (``k``, ``k_refine``, ``mode``,
+            ``min_confidence``, ...).
+
+    Raises:
+        ValueError: an unknown ``on_uncertain``.
     """
 
-    def __init__(self, seed: int = 0, **kwargs):
-        self.seed, self.kwargs = seed, kwargs
+    def __init__(self, seed: int = 0, on_uncertain: str = "keep", **kwargs):
+        if on_uncertain not in ON_UNCERTAIN:
+            raise ValueError(f"on_uncertain must be one of {', '.join(map(repr, ON_UNCERTAIN))}, "
+                             f"got {on_uncertain!r}")
+        self.seed, self.on_uncertain, self.kwargs = seed, on_uncertain, kwargs
 
     def __call__(self, sample: dict) -> dict:
         try:
@@ -254,14 +273,23 @@ class DetectSymmetries:
         if "generator" in inspect.signature(detect_symmetries).parameters:
             extra["generator"] = torch.Generator().manual_seed(self.seed)
         result = detect_symmetries(verts, faces, spectrum=spectrum, **extra, **self.kwargs)
-        sample["sym_score"] = torch.tensor([float(s.score) for s in result.symmetries],
-                                           dtype=sample["verts"].dtype)
-        sample["sym_reverses"] = torch.tensor([s.kind in _REVERSING for s in result.symmetries],
-                                              device=result.p2ps.device)
-        return _store_symmetries(sample, result.p2ps)
+        syms = list(result.symmetries)
+        if self.on_uncertain == "drop" and any(s.uncertain for s in syms):
+            syms = syms[:1]  # the identity
+        dtype, device = sample["verts"].dtype, result.p2ps.device
+        sample["sym_score"] = torch.tensor([float(s.score) for s in syms], dtype=dtype)
+        sample["sym_confidence"] = torch.tensor([float(s.confidence) for s in syms], dtype=dtype)
+        sample["sym_reverses"] = torch.tensor([s.kind in _REVERSING for s in syms], device=device)
+        if self.on_uncertain == "flag":
+            sample["sym_uncertain"] = torch.tensor([bool(s.uncertain) for s in syms], device=device)
+        return _store_symmetries(sample, result.p2ps[: len(syms)])
 
     def __repr__(self) -> str:
-        args = [f"seed={self.seed}"] + [f"{k}={v!r}" for k, v in sorted(self.kwargs.items())]
+        # on_uncertain="keep" is left out: the repr is the cache key, and caches made before the
+        # option existed hold what "keep" gives (less sym_confidence)
+        args = [f"seed={self.seed}"] + ([f"on_uncertain={self.on_uncertain!r}"]
+                                        if self.on_uncertain != "keep" else []) \
+            + [f"{k}={v!r}" for k, v in sorted(self.kwargs.items())]
         return f"{type(self).__name__}({', '.join(args)})"
 
 

@@ -8,6 +8,8 @@
   tuples, clustering, refinement, closure, the group;
 - :mod:`.constraints`: the point and descriptor constraints both paths solve Procrustes on;
 - :mod:`.verification`: geodesic distortion, orientation and descriptor checks;
+- :mod:`.confidence`: the reported reflection's confidence (a second selection's agreement) and the
+  signals measured against it;
 - :mod:`.result`: :class:`Symmetry`, :class:`SymmetryResult` and the diagnostics records.
 """
 from .auto import detect_symmetries

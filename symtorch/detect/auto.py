@@ -41,7 +41,7 @@ from .result import Diagnostics, SymmetryResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["detect_symmetries", "in_basis", "cloud_surface"]
+__all__ = ["detect_symmetries", "in_basis", "cloud_surface", "mark_uncertain"]
 
 MODES = ("auto", "reflection", "group")
 
@@ -124,6 +124,7 @@ def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectr
     solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, surface)
     result = _run_policy(verts, faces, spectrum, mode, cfg, solver, timer, batch_device)
     result = in_basis(result, spectrum, band_boundary(solved_bands(spectrum.evals), cfg.k_refine))
+    result = mark_uncertain(result, cfg.min_confidence)
     return replace(result, timings=dict(timer.timings),
                    input="point_cloud" if cloud else "mesh").to(out_device)
 
@@ -206,6 +207,14 @@ def _several_involutions(reflected: SymmetryResult, tol: float) -> bool:
     """At least three involutive extrema permutations as consistent as ``tol`` (KLC units)."""
     scores = reflected.diagnostics.reflection.candidate_scores
     return tol > 0 and len(scores) >= 3 and scores[2] < tol
+
+
+def mark_uncertain(result: SymmetryResult, min_confidence: float) -> SymmetryResult:
+    """The result with each element's ``uncertain`` flag set: its confidence is below
+    ``min_confidence`` (the identity never is)."""
+    symmetries = [replace(s, uncertain=s.kind != "identity" and float(s.confidence) < min_confidence)
+                  for s in result.symmetries]
+    return replace(result, symmetries=symmetries, min_confidence=float(min_confidence))
 
 
 def in_basis(result: SymmetryResult, spectrum: Spectrum, K: int) -> SymmetryResult:

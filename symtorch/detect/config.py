@@ -48,6 +48,9 @@ class ReflectionConfig:
             (``descriptor_gap``).
         w_guide: weight of the orientation guide in the second selection, run only where the first
             one verifies nothing (0: no second selection).
+        second_opinion: where the first selection's map verifies, run the guided selection too
+            and measure how well its choice agrees with the map (``ReflectionDiagnostics.agreement``,
+            a signal of :mod:`.confidence`); off, the confidence goes without it.
         verify: the final distortion measure: ``'involution'`` (``involution_distortion``, read off
             the samples' own distance fields) or ``'images'`` (``isometry_score``, one heat solve
             per sample image).
@@ -75,6 +78,7 @@ class ReflectionConfig:
     max_worst: float = 1.5
     max_descriptor_gap: float = 0.4
     w_guide: float = 1.0
+    second_opinion: bool = True
     verify: str = "involution"
 
     def __post_init__(self):
@@ -151,6 +155,10 @@ class DetectConfig:
             normals disagree, some cosine below this (fans bridging two sheets that touch); None:
             on the point cloud as it is (``robust_laplacian.point_cloud_laplacian``,
             ``potpourri3d.PointCloudHeatSolver``), bridges included.
+        min_confidence: a reported symmetry whose confidence (``Symmetry.confidence``,
+            :mod:`.confidence`) is below this is marked ``uncertain``. Chosen on SCAPE and TOSCA
+            (``scripts/confidence_stats.py``): the centre of the range of thresholds that flag the
+            same maps there; FAUST and TOSCA_Isometric were held out.
         reflection: the reflection path's knobs.
         group: the group path's knobs.
     """
@@ -161,6 +169,7 @@ class DetectConfig:
     group_k_refine: int = 40
     group_tol: float = 0.06
     cloud_min_cos: float | None = 0.0
+    min_confidence: float = 0.37
     reflection: ReflectionConfig = field(default_factory=ReflectionConfig)
     group: GroupConfig = field(default_factory=GroupConfig)
 

@@ -26,6 +26,11 @@ Pipeline; each stage is a function below and its seconds are kept under its name
    upsampling guided by features whose sign a reflection flips (:func:`orientation_guide`), then
    refine and verify once more. On posed humans the right candidate's plain upsampling can slide to
    the orientation-preserving near-isometry (left-right and front-back swapped at once).
+6. **second_opinion**: where the first selection's map verified, the guided selection runs over
+   the candidates up to the one chosen, unrefined, and the share of the vote samples on which its
+   map agrees with the reported one is the reflection's confidence (:mod:`.confidence`); where
+   two near-symmetries compete (posed humans: arms swapped, each leg mirrored onto itself), the
+   two selections tend to part.
 
 The knobs are :class:`~symtorch.detect.config.ReflectionConfig`; why each default is what it is, with
 the measurements, is in ``BENCHMARKS.md`` and ``docs/notes/``.
@@ -50,15 +55,18 @@ from ..procrustes import block_procrustes
 from ..refine import zoomout_symmetry
 from ..sampling import farthest_point_sampling
 from ..spectrum import Spectrum, band_boundary, solved_bands
+from ..units import EPS_KLC
+from .confidence import reflection_confidence
 from .config import ReflectionConfig
 from .constraints import descriptor_coefficients, disk_coefficients
 from .involutions import heat_extrema, involution_candidates
 from .result import Checks, Diagnostics, ReflectionDiagnostics, Symmetry, SymmetryResult, Trial
-from .verification import (descriptor_gap, involution_distortion, isometry_score, orientation_vote,
-                           vertex_normals)
+from .verification import (descriptor_gap, involution_distortion, involution_error, isometry_score,
+                           orientation_vote, vertex_normals)
 
 __all__ = ["detect_reflection", "reflection_basis", "find_candidates", "candidate_fmaps",
-           "select_candidate", "refine_and_verify", "orientation_guide", "reflection_group", "Basis",
+           "select_candidate", "refine_and_verify", "second_opinion", "map_agreement",
+           "orientation_guide", "reflection_group", "Basis",
            "Candidates", "SampleSet", "Selection", "Refined"]
 
 
@@ -156,16 +164,26 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
         lap("select")
         found = refine_and_verify(chosen.fmap, samples, cands.desc, basis, cfg, lap)
         diag = replace(diag, trials=chosen.trials, chosen=chosen.chosen, checks=found.checks)
+        other = None  # the selection the reported map did not come from: its matrix at k_select
         if not found.checks.accepted and cfg.w_guide > 0:
             # only here: as the first choice the guide also makes wrong candidates reverse the
             # orientation (docs/notes/2026-11-sessions-1-5.md, "orientation guide")
+            other = chosen.fmap
             chosen = select_candidate(C0, cands, samples, basis, cfg, guided=True)
             lap("select_guided")
             found = refine_and_verify(chosen.fmap, samples, cands.desc, basis, cfg, lap)
             diag = replace(diag, guided_trials=chosen.trials, guided_chosen=chosen.chosen,
                            guided=found.checks)
+        elif found.checks.accepted and cfg.second_opinion and cfg.w_guide > 0:
+            second = second_opinion(C0, cands, chosen.chosen[0], samples, basis, cfg)
+            lap("second_opinion")
+            other = second.fmap
+            diag = replace(diag, second_chosen=second.chosen)
+        if found.checks.accepted and other is not None:
+            diag = replace(diag, agreement=map_agreement(samples, found.p2p, other))
         if found.checks.accepted:
-            symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score))
+            symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
+                                       confidence=reflection_confidence(diag)))
     symmetries, group = reflection_group(symmetries, verts, faces)
     return SymmetryResult(symmetries, spectrum, basis.bands, group=group,
                           timings=dict(timer.timings) if timer is not None else {},
@@ -289,7 +307,8 @@ def select_candidate(C0: Tensor, cands: Candidates, samples: SampleSet, basis: B
     best, trials, guides = None, [], {}
     for c, kc in itertools.product(range(len(perms)), basis.starts):
         if guided and c not in guides:  # one per candidate, whatever the coarse start
-            guides[c] = orientation_guide(samples.verts, samples.faces, cands.dist, perms[c], cfg.w_guide)
+            guide = orientation_guide(samples.verts, samples.faces, cands.dist, perms[c], cfg.w_guide)
+            guides[c] = tuple(g.to(samples.evecs.dtype) for g in guide)  # searched beside evecs
         Cs, vote, distortion = _upsample_and_measure(C0[c, :kc, :kc], samples, basis, cfg, guides.get(c))
         trials.append(Trial(round(vote, 3), round(distortion, 3)))
         key = (0, distortion) if math.isfinite(distortion) else (1, vote)
@@ -346,10 +365,38 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
         d = isometry_score(samples.solver, p2p, samples.samples[:n], source_dist=samples.pairwise(n))
     vote = float(orientation_vote(p2p, samples.verts, samples.normals, samples.vote_samples))
     gap = descriptor_gap(desc, p2p, samples.mass)
+    inv = involution_error(samples.fields()[:n], samples.samples[:n], p2p)
     lap("verify")
     ok = d.score >= cfg.min_score and vote < -cfg.max_vote and d.worst < cfg.max_worst \
         and gap < cfg.max_descriptor_gap
-    return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok))
+    return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok, inv))
+
+
+def second_opinion(C0: Tensor, cands: Candidates, chosen: int, samples: SampleSet, basis: Basis,
+                   cfg: ReflectionConfig) -> Selection:
+    """Stage 6: the guided selection over the candidates up to the ``chosen`` one, left unrefined.
+
+    Only those the first selection ranked before its choice, and the choice: a second opinion on
+    whether a more consistent candidate, upsampled with the orientation guide, beats it (where two
+    near-symmetries compete, the guide tends to prefer the other one). Its map's agreement with
+    the reported one (:func:`map_agreement`) is the confidence (:mod:`.confidence`).
+    """
+    c = chosen + 1
+    head = cands._replace(perms=cands.perms[:c], scores=cands.scores[:c])
+    return select_candidate(C0[:c], head, samples, basis, cfg, guided=True)
+
+
+def map_agreement(samples: SampleSet, p2p: Tensor, fmap: Tensor) -> tuple[float, float]:
+    """How well a dense map agrees with another matrix's map on the vote samples.
+
+    Returns:
+        (share of the vote samples whose two images lie within one EPS_KLC of each other,
+        the same within two), distances Euclidean on the unit-area shape.
+    """
+    p2p_s, _ = samples.vote(fmap)
+    s = samples.vote_samples
+    d = (samples.verts[p2p[s]] - samples.verts[p2p_s[s]]).norm(dim=-1) / EPS_KLC
+    return float((d < 1).double().mean()), float((d < 2).double().mean())
 
 
 def orientation_guide(verts: Tensor, faces: Tensor, dist: Tensor, perm: np.ndarray,
@@ -361,8 +408,9 @@ def orientation_guide(verts: Tensor, faces: Tensor, dist: Tensor, perm: np.ndarr
     """
     src = np.flatnonzero(perm >= 0)
     pairs = torch.as_tensor(list(itertools.combinations(range(len(src)), 2)), dtype=torch.long).reshape(-1, 2)
-    fields = dist[torch.as_tensor(src)]
-    images = dist[torch.as_tensor(perm[src])]
+    # the geometry's dtype (a float32 spectrum gives float32 distance fields; verts stay float64)
+    fields = dist[torch.as_tensor(src)].to(verts.dtype)
+    images = dist[torch.as_tensor(perm[src])].to(verts.dtype)
     return (weight * gradient_cross(verts, faces, fields, pairs),
             -weight * gradient_cross(verts, faces, images, pairs))
 

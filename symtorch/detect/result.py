@@ -1,6 +1,7 @@
 """Result types of symmetry detection: the elements, the result, and each path's diagnostics."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, NamedTuple
 
@@ -23,7 +24,12 @@ class Symmetry:
         p2p: [V] long, ``p2p[i]`` is the image of vertex ``i``.
         kind: 'identity' | 'reflection' | 'rotation' | 'rotoreflection'.
         order: smallest n with ``g^n = e`` (from the group table).
-        score: confidence ``exp(-distortion^2)`` in [0, 1]; higher is better.
+        score: ``exp(-distortion^2)`` in [0, 1], the geodesic distortion of the map; higher is
+            better. It measures how isometric the map is, not whether it is the right symmetry.
+        confidence: in [0, 1], whose ranking separates right maps from wrong ones (a reflection:
+            :func:`~symtorch.detect.confidence.reflection_confidence`); None on construction: the
+            ``score``. The identity's is 1.
+        uncertain: the confidence is below the detector's ``DetectConfig.min_confidence``.
     """
 
     fmap: Tensor
@@ -31,6 +37,12 @@ class Symmetry:
     kind: str
     order: int
     score: float
+    confidence: float | None = None
+    uncertain: bool = False
+
+    def __post_init__(self):
+        if self.confidence is None:  # frozen: set through object's own setter
+            object.__setattr__(self, "confidence", float(self.score))
 
     @property
     def C(self) -> Tensor:
@@ -55,10 +67,12 @@ class Checks(NamedTuple):
     orientation: float       # orientation vote of the dense map (-1: reverses everywhere)
     descriptor_gap: float    # how much the map changes the descriptors
     accepted: bool
+    involution_error: float = math.nan  # mean d(s, g(g(s))) over the samples, EPS_KLC units
 
     def to_dict(self) -> dict[str, float]:
         return {"distortion": self.distortion, "worst_distortion": self.worst_distortion,
-                "orientation": self.orientation, "descriptor_gap": self.descriptor_gap}
+                "orientation": self.orientation, "descriptor_gap": self.descriptor_gap,
+                "involution_error": self.involution_error}
 
 
 @dataclass(frozen=True)
@@ -74,6 +88,11 @@ class ReflectionDiagnostics:
         checks: the verification of the refined map.
         guided_trials, guided_chosen, guided: the same for the guided second selection, where the
             first one verified nothing (else empty / None).
+        second_chosen: where the first selection verified and ``second_opinion`` is on, the
+            candidate the guided selection would have chosen.
+        agreement: (share within one, share within two EPS_KLC) of the vote samples on which the
+            reported map and the other selection's map agree (``reflection.map_agreement``);
+            None: no second selection ran.
     """
 
     n_extrema: int
@@ -88,6 +107,8 @@ class ReflectionDiagnostics:
     guided_trials: list[Trial] = field(default_factory=list)
     guided_chosen: tuple[int, int] | None = None
     guided: Checks | None = None
+    second_chosen: tuple[int, int] | None = None
+    agreement: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out = {"n_extrema": self.n_extrema, "n_seeds": self.n_seeds, "n_candidates": self.n_candidates,
@@ -100,6 +121,10 @@ class ReflectionDiagnostics:
         if self.guided is not None:
             out.update(guided_trials=[tuple(t) for t in self.guided_trials],
                        guided_chosen=self.guided_chosen, guided=self.guided.to_dict())
+        if self.second_chosen is not None:
+            out["second_chosen"] = self.second_chosen
+        if self.agreement is not None:
+            out["agreement"] = list(self.agreement)
         return out
 
 
@@ -199,6 +224,7 @@ class SymmetryResult:
         timings: seconds per stage, in the order they ran.
         diagnostics: what each path saw and decided.
         input: ``'mesh'`` or ``'point_cloud'``, what the detection ran on.
+        min_confidence: the threshold the elements' ``uncertain`` flags were set with (None: not set).
     """
 
     symmetries: list[Symmetry]
@@ -209,6 +235,7 @@ class SymmetryResult:
     timings: dict[str, float] = field(default_factory=dict)
     diagnostics: Diagnostics | None = None
     input: str = "mesh"
+    min_confidence: float | None = None
 
     def to(self, device: torch.device | str) -> SymmetryResult:
         """The result with its matrices, maps, spectrum and group tables on ``device`` (itself when
@@ -237,6 +264,16 @@ class SymmetryResult:
         return next((s for s in self.symmetries if s.kind == "reflection"), None)
 
     @property
+    def confidences(self) -> Tensor:
+        """[G] each element's confidence, identity first (float64)."""
+        return torch.tensor([float(s.confidence) for s in self.symmetries], dtype=torch.float64)
+
+    @property
+    def uncertain(self) -> bool:
+        """Some element other than the identity is uncertain."""
+        return any(s.uncertain for s in self.symmetries)
+
+    @property
     def info(self) -> dict[str, Any]:
         """``diagnostics.to_dict()``: the diagnostics as the plain dict of earlier versions."""
         return self.diagnostics.to_dict() if self.diagnostics is not None else {}
@@ -246,7 +283,8 @@ class SymmetryResult:
 
         ``symmetries[i]`` is group element ``i``: the indices of ``group["table"]``,
         ``group["inverses"]`` and ``group["orders"]`` refer to it, and it carries its ``kind``, ``order``,
-        ``score`` and vertex map ``p2p``. ``group["elements"]`` repeats, per element, its kind, order,
+        ``score``, ``confidence``, ``uncertain`` flag and vertex map ``p2p``; the top-level
+        ``uncertain`` says whether any element is, ``min_confidence`` the threshold. ``group["elements"]`` repeats, per element, its kind, order,
         inverse and orientation next to the table; ``group["table_paper"]`` is the table in the layout
         of the paper's Table 3 (``table.T``: entry (i, j) is "g_i, then g_j").
         """
@@ -255,6 +293,7 @@ class SymmetryResult:
         group["table_paper"] = [list(col) for col in zip(*group["table"])]
         group["elements"] = [
             {"index": i, "kind": s.kind, "order": s.order, "score": round(float(s.score), 6),
+             "confidence": round(float(s.confidence), 6), "uncertain": bool(s.uncertain),
              **({"inverse": inv[i]} if i < len(inv) else {}),
              **({"reversing": bool(rev[i])} if i < len(rev) else {})}
             for i, s in enumerate(self.symmetries)]
@@ -264,7 +303,10 @@ class SymmetryResult:
             "k": int(self.symmetries[0].fmap.shape[-1]),
             "bands": [[b.start, b.stop] for b in self.bands],
             "continuous": self.continuous,
+            "uncertain": self.uncertain,
+            "min_confidence": self.min_confidence,
             "symmetries": [{"kind": s.kind, "order": s.order, "score": round(float(s.score), 6),
+                            "confidence": round(float(s.confidence), 6), "uncertain": bool(s.uncertain),
                             "p2p": s.p2p.tolist()} for s in self.symmetries],
             "group": group,
             "timings": {k: round(v, 4) for k, v in self.timings.items()},

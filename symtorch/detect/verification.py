@@ -17,10 +17,11 @@ from torch import Tensor
 
 from .._checks import to_numpy
 from ..geodesics import GeodesicSolver
+from ..orientation import vertex_normals
 from ..units import EPS_KLC
 
-__all__ = ["Distortion", "isometry_score", "involution_distortion", "descriptor_gap", "vertex_normals",
-           "orientation_vote"]
+__all__ = ["Distortion", "isometry_score", "involution_distortion", "involution_error", "descriptor_gap",
+           "vertex_normals", "orientation_vote"]
 
 
 class Distortion(NamedTuple):
@@ -79,6 +80,24 @@ def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor) -> Disto
     return _distortion(to_numpy((X - X.mT).abs()) / EPS_KLC)
 
 
+def involution_error(fields: Tensor, samples: Tensor, p2p: Tensor) -> float:
+    """How far a map applied twice lands from where it started: mean ``d(s, g(g(s)))`` over the samples.
+
+    0 for an involution; the dense map of a reflection is one up to the vertex-level jitter of a
+    nearest-neighbour search, a map that slides along a near-symmetry drifts.
+
+    Args:
+        fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n] vertex ids;
+        p2p: [V] the map.
+
+    Returns:
+        The mean, in EPS_KLC units.
+    """
+    back = p2p[p2p[samples]]  # [n]
+    d = fields[torch.arange(len(samples)), back]
+    return float(d.mean()) / EPS_KLC
+
+
 def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
     """How much a vertex map changes the isometry-invariant descriptors.
 
@@ -94,14 +113,6 @@ def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
     Z = (L - L.mean(0)) / L.std(0).clamp_min(1e-12)
     per_vertex = (Z - Z[p2p]).abs().mean(1)
     return float((mass * per_vertex).sum() / mass.sum())
-
-
-def vertex_normals(verts: Tensor, faces: Tensor) -> Tensor:
-    """[V, 3] area-weighted unit vertex normals."""
-    faces = torch.as_tensor(faces).long()
-    fn = torch.linalg.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])
-    vn = torch.zeros_like(verts).index_add_(0, faces.reshape(-1), fn.repeat_interleave(3, 0))
-    return vn / vn.norm(dim=1, keepdim=True).clamp_min(1e-30)
 
 
 def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tensor, n_neighbors: int = 4,
