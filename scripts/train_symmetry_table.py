@@ -22,8 +22,10 @@ PIPELINE = "augment+tta"
 
 def by_seed(rows: dict, pipeline: str) -> None:
     """One line per dataset, regime and seed, then per column the mean over the seeds that have it
-    and the baseline, with its ratio to the baseline's mean over the same seeds."""
-    cols = ("baseline", "baseline+tta", "augment", "augment+tta", "augment+stta", "symmetrize")
+    and the baseline: error (its ratio to the baseline's mean over the same seeds, mean flipped
+    share)."""
+    cols = ("baseline", "baseline+tta", "baseline+stta", "augment", "augment+tta", "augment+stta",
+            "symmetrize", "symmetrize+tta")
     cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
     print("|---|---:|" + "---:|" * len(cols))
@@ -39,9 +41,13 @@ def by_seed(rows: dict, pipeline: str) -> None:
         cells = []
         for c, col in enumerate(cols):
             have = [r for r in table.values() if r[c] is not None]
-            mean = sum(r[c]["error"] for r in have) / len(have) if have else float("nan")
-            base = sum(r[0]["error"] for r in have) / len(have) if have else float("nan")
-            cell = f"{mean:.4f}" + ("" if c == 0 else f" ({mean / base:.2f}x)")
+            if not have:
+                cells.append("–")
+                continue
+            mean = sum(r[c]["error"] for r in have) / len(have)
+            base = sum(r[0]["error"] for r in have) / len(have)
+            flipped = 100 * sum(r[c]["flipped"] for r in have) / len(have)
+            cell = f"{mean:.4f} (" + ("" if c == 0 else f"{mean / base:.2f}x, ") + f"{flipped:.1f} %)"
             cells.append(f"**{cell}**" if col == pipeline else cell)
         n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))}
         label = f"mean of {max(n)}" if len(n) == 1 else f"mean ({min(n)}-{max(n)} seeds)"

@@ -2,9 +2,7 @@
 
 Needs the optional remesher (``pip install pyacvd``); skipped without it. No shared data is read.
 """
-import importlib.util
 import json
-import sys
 import warnings
 from pathlib import Path
 
@@ -14,18 +12,14 @@ import pytest
 from symtorch.io import MeshWarning, mesh_report, read_mesh
 from symtorch.remesh import orientation_report
 from symtorch.shapes import mirror_blob, symmetry_maps, true_symmetries
+from script_loader import SCRIPTS, load_script
 
 pytest.importorskip("pyacvd", reason="remeshing needs pyacvd (pip install pyacvd; brings pyvista and vtk)")
 
-_SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "build_scape_r.py"
 
 
 def _load_script():
-    spec = importlib.util.spec_from_file_location("build_scape_r", _SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses resolve their string annotations through it
-    spec.loader.exec_module(module)
-    return module
+    return load_script("build_scape_r")
 
 
 @pytest.fixture(scope="module")
@@ -152,5 +146,5 @@ def test_unknown_corres_method_raises(bs):
 
 
 def test_refuses_to_write_inside_the_repository(bs, capsys):
-    assert bs.main(["--out", str(_SCRIPT.parent.parent / "data_r"), "--limit", "0"]) == 2
+    assert bs.main(["--out", str(SCRIPTS.parent / "data_r"), "--limit", "0"]) == 2
     assert "inside the repository" in capsys.readouterr().err

@@ -1,23 +1,18 @@
 """scripts/confidence_stats.py: the AUROC it reports and the cached diagnostics' round trip."""
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 
 from symtorch.detect import DetectConfig
 from symtorch.detect.confidence import reflection_confidence
 from symtorch.detect.result import Checks, ReflectionDiagnostics, Trial
+from script_loader import load_script
 
-_SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "confidence_stats.py"
 
 
 def _load_script():
-    spec = importlib.util.spec_from_file_location("confidence_stats_script", _SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("confidence_stats")
 
 
 def test_auroc_counts_pairs_and_ties():

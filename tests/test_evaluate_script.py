@@ -1,17 +1,12 @@
 """scripts/evaluate.py's point-cloud options: the seeded subsample and the map lifted to the mesh."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
+from script_loader import load_script
 
-_SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "evaluate.py"
 
 
 def _load_script():
-    spec = importlib.util.spec_from_file_location("evaluate_script", _SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("evaluate")
 
 
 def test_point_subset_is_seeded_sorted_and_distinct():
