@@ -18,13 +18,17 @@ vertices (``../shared/data/bcicp_5k``; TOSCA pairs within a class), SCAPE remesh
 datasets' symmetric ground truth (``.sym.vts``, made dense by ``SymmetryFromCorrespondence``), or are
 detected by symtorch on every shape (``--symmetries detect``).
 
-Runs (cumulative):
+Runs:
 
 - ``baseline``: supervised loss ``||C - C_gt||^2``;
 - ``augment``: + symmetry augmentation, ``RandomSymmetry(mode="mirror")``: a shape with a detected
   reflection becomes its mirror image half of the time, its ground truth composed with the reflection
   (still an orientation-preserving correspondence), so the network must use orientation;
-- ``losses``: + symmetry equivariance ``||C S_x - S_y C||^2`` (hinged at the ground truth's value);
+- ``symmetrize``: the baseline's loss on a network averaged over each shape's reflection group
+  (:func:`symtorch.tta.symmetrized_features`: ``(f(x)[v] + f(x')[R(v)]) / 2`` with ``x'`` the
+  mirror image), in training and at test time; mirror-equivariant by construction, so no
+  augmentation; two feature passes per shape and step;
+- ``losses``: augment + symmetry equivariance ``||C S_x - S_y C||^2`` (hinged at the ground truth's value);
 - ``full``: + the orientation term (relative residual of ``C O_x = O_y C``, Ren et al. 2018, WKS
   operators; hinged the same way) in training and ``resolve_symmetry_p2p`` on the predicted maps.
 

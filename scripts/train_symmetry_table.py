@@ -4,9 +4,9 @@
     python scripts/train_symmetry_table.py --by-seed results.jsonl   # per seed, and the mean over seeds
 
 One line per dataset, regime and run: the plain error and flipped share, then the error after each
-post-process, and the ratio of the symmetry pipeline (``augment+tta``: mirror augmentation,
-mirror test-time averaging) to the baseline, with its flipped share. Later
-rows of the same setting replace earlier ones.
+post-process, and the ratio of the symmetry pipeline (``symmetrize+tta``: the network averaged
+over each shape's reflection, with mirror test-time averaging) to the baseline, with its flipped
+share. Later rows of the same setting replace earlier ones.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from pathlib import Path
 from train_symmetry import POSTS, RUNS as TRAINED  # the script beside this one
 
 RUNS = TRAINED[:2] + ("augment-pair",) + TRAINED[2:]  # augment-pair: train_symmetry --mirror pair
-PIPELINE = "augment+tta"
+PIPELINE = "symmetrize+tta"
 
 
 def by_seed(rows: dict, pipeline: str) -> None:
@@ -49,7 +49,7 @@ def by_seed(rows: dict, pipeline: str) -> None:
             flipped = 100 * sum(r[c]["flipped"] for r in have) / len(have)
             cell = f"{mean:.4f} (" + ("" if c == 0 else f"{mean / base:.2f}x, ") + f"{flipped:.1f} %)"
             cells.append(f"**{cell}**" if col == pipeline else cell)
-        n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))}
+        n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))} - {0}
         label = f"mean of {max(n)}" if len(n) == 1 else f"mean ({min(n)}-{max(n)} seeds)"
         print(f"| {ds} {regime} | {label} | " + " | ".join(cells) + " |")
 
@@ -58,7 +58,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("rows", type=Path, nargs="+")
     ap.add_argument("--by-seed", action="store_true",
-                    help="baseline, baseline+tta, augment and the pipeline per seed, and their means")
+                    help="the runs and post-processes per seed, and their means")
     ap.add_argument("--steps", type=int, default=300, help="the rows of runs this long (default 300)")
     args = ap.parse_args()
     rows = {}
@@ -84,7 +84,7 @@ def main() -> None:
             cells = [f"{g['error']:.4f}" if g else "–" for g in got]
             best = rows.get((ds, regime, PIPELINE, seed, sym))
             ratio = (f"{got[0]['error'] / base['error']:.2f}" if base else "–")
-            if run == "augment" and best and base:
+            if run == PIPELINE.split("+")[0] and best and base:
                 ratio += (f" (pipeline {best['error'] / base['error']:.2f}, "
                           f"{100 * best['flipped']:.1f} % flipped)")
             print(f"| {ds} | {regime} | {got[0]['n_train']} | {run} | {cells[0]} | "
