@@ -164,7 +164,7 @@ def main():
         v, f = shapes.SHAPES[name](subdivisions=sub)
         run(f"{name} (sub {sub})", v, f, expected, shapes.symmetry_maps(v, shapes.true_symmetries(name)))
     v, f = shapes.star_prism(sub)
-    run(f"star_prism bent R=4", bend(v), f, "D5h", shapes.symmetry_maps(v, shapes.true_symmetries("star_prism")))
+    run("star_prism bent R=4", bend(v), f, "D5h", shapes.symmetry_maps(v, shapes.true_symmetries("star_prism")))
     v, f = shapes.ellipsoid(3)
     run("ellipsoid (sub 3)", v, f, "continuous")
     v, f = shapes.icosphere(3)

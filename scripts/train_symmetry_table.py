@@ -34,8 +34,9 @@ def by_seed(rows: dict, pipeline: str) -> None:
         if not seeds:
             continue
         table = {s: [rows.get((ds, regime, c, s, sym)) for c in cols] for s in seeds}
+        setting = f"{ds} {regime}" + (" (detected symmetries)" if sym == "detect" else "")
         for s, r in table.items():
-            print(f"| {ds} {regime} | {s} | " + " | ".join(
+            print(f"| {setting} | {s} | " + " | ".join(
                 "–" if x is None else f"{x['error']:.4f}"
                 + (f" ({100 * x['flipped']:.1f} % flipped)" if x["flipped"] else "") for x in r) + " |")
         cells = []
@@ -51,7 +52,7 @@ def by_seed(rows: dict, pipeline: str) -> None:
             cells.append(f"**{cell}**" if col == pipeline else cell)
         n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))} - {0}
         label = f"mean of {max(n)}" if len(n) == 1 else f"mean ({min(n)}-{max(n)} seeds)"
-        print(f"| {ds} {regime} | {label} | " + " | ".join(cells) + " |")
+        print(f"| {setting} | {label} | " + " | ".join(cells) + " |")
 
 
 def main() -> None:

@@ -279,10 +279,6 @@ def test_basis_changes_keep_the_eigenspaces(sym_sample, cls):
 
 
 def test_detect_symmetries_transform():
-    try:
-        from symtorch.detect import detect_symmetries  # noqa: F401
-    except ImportError:
-        pytest.skip("symtorch.detect_symmetries is not available yet")
     verts, faces, mirror = mirror_mesh(subdivisions=3)
     sample = Compose([NormalizeArea(), ComputeSpectrum(k=40)])({"verts": verts, "faces": faces})
     out = DetectSymmetries(k=12, k_refine=24, n_samples=300)(sample)

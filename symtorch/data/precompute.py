@@ -48,7 +48,6 @@ settings), ``failures.jsonl``, ``.lock`` and ``.run.lock``.
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import datetime
 import errno
@@ -81,7 +80,7 @@ from .transforms import (Compose, ComputeDescriptors, ComputeSpectrum, DetectSym
 log = logging.getLogger(__name__)
 
 __all__ = ["default_pre_transform", "find_meshes", "precompute", "open_dataset", "done_names",
-           "Summary", "FolderInUse", "register_cli"]
+           "Summary", "FolderInUse"]
 
 FAILURES = "failures.jsonl"
 SETTINGS = "precompute.json"
