@@ -64,7 +64,7 @@ from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
 from symtorch.flips import VoteSmoother, resolve_symmetry_parts
-from symtorch.tta import mirror_pair, reflection_index, symmetrized_features
+from symtorch.tta import mirror_pair, reflection_average, symmetrized_features
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 
@@ -243,11 +243,9 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     feats_m = {i: model.point_features(mirror_shape(data[i])) for i in ids}
     coefs = {i: model.project(feats[i], data[i]) for i in ids}
     mirrored = {i: model.project(feats_m[i], data[i]) for i in ids}
-    # symmetric averaging, shape by shape: the mirror image's features read at the reflected
-    # vertex (the mirror image's vertex R(v) carries v's label) averaged with the shape's own
-    # (symtorch.tta.symmetrized_features, written out to reuse the features computed above)
-    symmetrized = {i: model.project(0.5 * (feats[i] + feats_m[i][data[i]["sym_p2p"][reflection_index(data[i])]]),
-                                    data[i]) for i in ids}
+    # symmetric averaging, shape by shape, of the features computed above (symmetrized_features)
+    symmetrized = {i: model.project(reflection_average(feats[i], feats_m[i], data[i]), data[i])
+                   for i in ids}
     scores: dict[str, list] = {post: [] for post in POSTS if args.parts or "parts" not in post}
 
     def p2p_of(C, x, y):

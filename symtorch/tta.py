@@ -27,7 +27,8 @@ from torch import Tensor
 
 from .data.symmetry import mirror_shape
 
-__all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_index"]
+__all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_average",
+           "reflection_index"]
 
 
 def mirror_pair(x: dict, y: dict, axis: int = 0) -> tuple[dict, dict]:
@@ -78,10 +79,23 @@ def symmetrized_features(feature_fn: Callable[[dict], Tensor], sample: dict, axi
         reflection.
     """
     F = feature_fn(sample)
+    if reflection_index(sample) is None:
+        return F
+    return reflection_average(F, feature_fn(mirror_shape(sample, axis)), sample)
+
+
+def reflection_average(F: Tensor, F_mirror: Tensor, sample: dict) -> Tensor:
+    """``(F[v] + F_mirror[R(v)]) / 2`` for features already computed on the shape and on its mirror
+    image (the average :func:`symmetrized_features` takes); ``F`` where the sample has no reflection.
+
+    Args:
+        F, F_mirror: [V, D] features of the shape and of its mirror image.
+        sample: with ``sym_p2p [G, V]`` and ``sym_reverses [G]``.
+    """
     r = reflection_index(sample)
     if r is None:
         return F
     R = torch.as_tensor(sample["sym_p2p"][r], device=F.device).long()
     if R.shape != (F.shape[0],):
         raise ValueError(f"sym_p2p[{r}] must be [V] = [{F.shape[0]}], got {list(R.shape)}")
-    return 0.5 * (F + feature_fn(mirror_shape(sample, axis))[R])
+    return 0.5 * (F + F_mirror[R])
