@@ -26,16 +26,16 @@ def sym_sample():
     return sample, mirror
 
 
-def test_reprs():
+def test_reprs(monkeypatch):
     assert repr(NormalizeArea()) == "NormalizeArea(center=True)"
     assert repr(NormalizeArea(center=False)) == "NormalizeArea(center=False)"
     assert repr(ComputeSpectrum(30)) == f"ComputeSpectrum(k=30, rel_gap={REL_GAP})"
     assert repr(ComputeSpectrum(30, rel_gap=0.2)) == "ComputeSpectrum(k=30, rel_gap=0.2)"
     assert repr(ComputeDescriptors(8, 0, normalize=False)) == \
         "ComputeDescriptors(n_hks=8, n_wks=0, normalize=False)"
-    assert repr(DetectSymmetries()) == "DetectSymmetries(seed=0)"
+    assert repr(DetectSymmetries()) == "DetectSymmetries(seed=0, revision=2)"
     assert repr(DetectSymmetries(k_refine=40, k=20, mode="reflection")) == \
-        "DetectSymmetries(seed=0, k=20, k_refine=40, mode='reflection')"
+        "DetectSymmetries(seed=0, revision=2, k=20, k_refine=40, mode='reflection')"
     p = torch.stack([torch.arange(4), torch.tensor([1, 0, 3, 2])])
     assert repr(SetSymmetries(p)).startswith("SetSymmetries(G=2, V=4, sha1=")
     assert repr(SetSymmetries(p)) == repr(SetSymmetries(p.clone()))
@@ -51,6 +51,10 @@ def test_reprs():
     assert repr(Compose([NormalizeArea(), ComputeSpectrum(k=8)])) == \
         f"Compose([\n  NormalizeArea(center=True),\n  ComputeSpectrum(k=8, rel_gap={REL_GAP}),\n])"
     assert repr(Compose([])) == "Compose([])"
+    # the detector's revision is part of the cache key: a detector whose results differ recomputes
+    import symtorch.detect.config as config
+    monkeypatch.setattr(config, "DETECTOR_REVISION", 3)
+    assert repr(DetectSymmetries()) == "DetectSymmetries(seed=0, revision=3)"
 
 
 def test_transforms_do_not_mutate_their_input(sym_sample):
@@ -348,6 +352,6 @@ def test_detect_symmetries_on_uncertain(mirror_spectrum_sample, on_uncertain, mi
 def test_detect_symmetries_on_uncertain_is_checked_and_in_the_repr():
     with pytest.raises(ValueError, match="on_uncertain must be one of 'keep', 'flag', 'drop', got 'skip'"):
         DetectSymmetries(on_uncertain="skip")
-    assert repr(DetectSymmetries(on_uncertain="keep")) == "DetectSymmetries(seed=0)"
+    assert repr(DetectSymmetries(on_uncertain="keep")) == "DetectSymmetries(seed=0, revision=2)"
     assert repr(DetectSymmetries(on_uncertain="drop", min_confidence=0.6)) == \
-        "DetectSymmetries(seed=0, on_uncertain='drop', min_confidence=0.6)"
+        "DetectSymmetries(seed=0, revision=2, on_uncertain='drop', min_confidence=0.6)"

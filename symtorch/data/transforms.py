@@ -285,11 +285,14 @@ class DetectSymmetries:
         return _store_symmetries(sample, result.p2ps[: len(syms)])
 
     def __repr__(self) -> str:
-        # on_uncertain="keep" is left out: the repr is the cache key, and caches made before the
-        # option existed hold what "keep" gives (less sym_confidence)
-        args = [f"seed={self.seed}"] + ([f"on_uncertain={self.on_uncertain!r}"]
-                                        if self.on_uncertain != "keep" else []) \
-            + [f"{k}={v!r}" for k, v in sorted(self.kwargs.items())]
+        # The repr is the cache key: the detector's revision is in it (a cache made by a detector
+        # whose results differ is recomputed); on_uncertain="keep" is left out (caches made before
+        # the option existed hold what "keep" gives, less sym_confidence)
+        from ..detect.config import DETECTOR_REVISION
+
+        args = [f"seed={self.seed}", f"revision={DETECTOR_REVISION}"]
+        args += [f"on_uncertain={self.on_uncertain!r}"] if self.on_uncertain != "keep" else []
+        args += [f"{k}={v!r}" for k, v in sorted(self.kwargs.items())]
         return f"{type(self).__name__}({', '.join(args)})"
 
 

@@ -10,7 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-__all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION_KEYWORDS"]
+__all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION_KEYWORDS",
+           "DETECTOR_REVISION"]
+
+#: Raised whenever the default detection's results change (a new stage, a new default): it is part
+#: of the cache key of ``symtorch.data.DetectSymmetries``, so that symmetries cached by an earlier
+#: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties.
+DETECTOR_REVISION = 2
 
 
 @dataclass(frozen=True)
@@ -46,6 +52,13 @@ class ReflectionConfig:
             but wrong on one part is no symmetry).
         max_descriptor_gap: and the map changes the descriptors by less than this
             (``descriptor_gap``).
+        final_ratio: every candidate whose selection distortion is within this factor of the
+            lowest one is refined and verified to the end (stage **final**), not only the lowest;
+            1: the lowest alone. The selection measures 16 samples in a medium basis, where two
+            candidates that differ in one limb's pairing can measure within a few percent.
+        final_vote_weight: among the verified finalists the reported one minimises its final
+            distortion plus this weight times ``1 + vote`` (a reflection reverses the orientation
+            everywhere, vote -1; a map with one limb mirrored onto itself reverses it in places).
         w_guide: weight of the orientation guide in the second selection, run only where the first
             one verifies nothing (0: no second selection).
         second_opinion: where the first selection's map verifies, run the guided selection too
@@ -77,6 +90,8 @@ class ReflectionConfig:
     max_vote: float = 0.2
     max_worst: float = 1.5
     max_descriptor_gap: float = 0.4
+    final_ratio: float = 1.15
+    final_vote_weight: float = 0.5
     w_guide: float = 1.0
     second_opinion: bool = True
     verify: str = "involution"

@@ -22,6 +22,10 @@ Pipeline; each stage is a function below and its seconds are kept under its name
    basis, its dense vertex map found by a two-level search (``maps.TwoLevelSearch``), and the map
    checked (:mod:`.verification`): near-isometric, orientation-reversing everywhere, no part wrong,
    descriptors kept. A map that fails is not reported: no forced symmetry on an asymmetric shape.
+   **final** (:func:`final_selection`): the candidates the selection measured nearly as isometric
+   as the winner are refined and verified too, and the verified map that is most isometric and
+   most clearly orientation-reversing is reported (on a posed human, a candidate with one limb
+   mirrored onto itself can measure a few percent better at the selection, not at the end).
 5. **select_guided**: only where nothing verified, the selection again with each candidate's
    upsampling guided by features whose sign a reflection flips (:func:`orientation_guide`), then
    refine and verify once more. On posed humans the right candidate's plain upsampling can slide to
@@ -107,11 +111,21 @@ class Candidates(NamedTuple):
 
 
 class Selection(NamedTuple):
-    """Stage 3: the candidate chosen (index, coarse start), its matrix at ``k_select``, the trials."""
+    """Stage 3: the candidate chosen (index, coarse start), its matrix at ``k_select``, the trials,
+    and every measured candidate as ``((index, start), distortion, matrix at k_select)``."""
 
     chosen: tuple[int, int]
     fmap: Tensor
     trials: list[Trial]
+    measured: tuple[tuple[tuple[int, int], float, Tensor], ...] = ()
+
+    def finalists(self, ratio: float) -> list[tuple[tuple[int, int], Tensor]]:
+        """The measured candidates within ``ratio`` of the chosen one's distortion, the chosen
+        one first, then by distortion."""
+        best = next((d for key, d, _ in self.measured if key == self.chosen), math.inf)
+        near = sorted((d, key, C) for key, d, C in self.measured
+                      if key != self.chosen and (math.isinf(ratio) or d <= ratio * best))
+        return [(self.chosen, self.fmap)] + [(key, C) for _, key, C in near]
 
 
 class Refined(NamedTuple):
@@ -163,7 +177,9 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
         chosen = select_candidate(C0, cands, samples, basis, cfg, guided=False)
         lap("select")
         found = refine_and_verify(chosen.fmap, samples, cands.desc, basis, cfg, lap)
-        diag = replace(diag, trials=chosen.trials, chosen=chosen.chosen, checks=found.checks)
+        pick, found, finalists = final_selection(chosen, found, samples, cands.desc, basis, cfg, lap)
+        diag = replace(diag, trials=chosen.trials, chosen=pick, finalists=finalists,
+                       checks=found.checks)
         other = None  # the selection the reported map did not come from: its matrix at k_select
         if not found.checks.accepted and cfg.w_guide > 0:
             # only here: as the first choice the guide also makes wrong candidates reverse the
@@ -175,7 +191,7 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
             diag = replace(diag, guided_trials=chosen.trials, guided_chosen=chosen.chosen,
                            guided=found.checks)
         elif found.checks.accepted and cfg.second_opinion and cfg.w_guide > 0:
-            second = second_opinion(C0, cands, chosen.chosen[0], samples, basis, cfg)
+            second = second_opinion(C0, cands, pick[0], samples, basis, cfg)
             lap("second_opinion")
             other = second.fmap
             diag = replace(diag, second_chosen=second.chosen)
@@ -304,13 +320,15 @@ def select_candidate(C0: Tensor, cands: Candidates, samples: SampleSet, basis: B
     :func:`orientation_guide`.
     """
     perms, scores = cands.perms, cands.scores
-    best, trials, guides = None, [], {}
+    best, trials, guides, measured = None, [], {}, []
     for c, kc in itertools.product(range(len(perms)), basis.starts):
         if guided and c not in guides:  # one per candidate, whatever the coarse start
             guide = orientation_guide(samples.verts, samples.faces, cands.dist, perms[c], cfg.w_guide)
             guides[c] = tuple(g.to(samples.evecs.dtype) for g in guide)  # searched beside evecs
         Cs, vote, distortion = _upsample_and_measure(C0[c, :kc, :kc], samples, basis, cfg, guides.get(c))
         trials.append(Trial(round(vote, 3), round(distortion, 3)))
+        if math.isfinite(distortion):
+            measured.append(((c, kc), distortion, Cs))
         key = (0, distortion) if math.isfinite(distortion) else (1, vote)
         if best is None or key < best[0]:
             best = (key, (c, kc), Cs)
@@ -320,7 +338,7 @@ def select_candidate(C0: Tensor, cands: Candidates, samples: SampleSet, basis: B
             # (candidates nearly as consistent as the first are all compared: they differ in how
             # a few extrema pair up, e.g. a paw swapped or kept, which only the maps tell apart)
             break
-    return Selection(best[1], best[2], trials)
+    return Selection(best[1], best[2], trials, tuple(measured))
 
 
 def _upsample_and_measure(Cs: Tensor, samples: SampleSet, basis: Basis, cfg: ReflectionConfig,
@@ -370,6 +388,35 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
     ok = d.score >= cfg.min_score and vote < -cfg.max_vote and d.worst < cfg.max_worst \
         and gap < cfg.max_descriptor_gap
     return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok, inv))
+
+
+def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc: Tensor, basis: Basis,
+                    cfg: ReflectionConfig, lap) -> tuple[tuple[int, int], Refined, list[tuple[int, int]]]:
+    """Stage 5: the selection's near-ties refined and verified too; the best verified one wins.
+
+    ``found`` is the chosen candidate refined (stage 4). Every other candidate whose selection
+    distortion is within ``cfg.final_ratio`` of the chosen one's is refined and verified the same
+    way, and among the verified maps the one with the lowest ``distortion + final_vote_weight *
+    (1 + vote)`` is reported (the final checks measure twice the samples, on the dense map in the
+    final basis). Where none verifies, the chosen one stays (and the guided selection follows).
+
+    Returns:
+        ((candidate, start) reported, its Refined, the (candidate, start) of every finalist).
+    """
+    finalists = chosen.finalists(cfg.final_ratio)
+    if len(finalists) < 2:
+        return chosen.chosen, found, [chosen.chosen]
+
+    def cost(r: Refined) -> float:
+        return r.checks.distortion + cfg.final_vote_weight * (1.0 + r.checks.orientation)
+
+    best = (chosen.chosen, found)
+    for key, Cs in finalists[1:]:
+        other = refine_and_verify(Cs, samples, desc, basis, cfg, lambda stage: None)
+        if other.checks.accepted and (not best[1].checks.accepted or cost(other) < cost(best[1])):
+            best = (key, other)
+    lap("final")
+    return best[0], best[1], [key for key, _ in finalists]
 
 
 def second_opinion(C0: Tensor, cands: Candidates, chosen: int, samples: SampleSet, basis: Basis,

@@ -84,7 +84,9 @@ class ReflectionDiagnostics:
             involutive permutations of the extrema.
         k0: coarse basis sizes the upsampling started from; k_refine: the final basis size.
         candidate_scores: consistency scores of the first candidates (EPS_KLC units, best first).
-        trials: one per candidate and start compared; chosen: (candidate, start) refined.
+        trials: one per candidate and start compared; chosen: (candidate, start) reported.
+        finalists: the (candidate, start) pairs refined and verified to choose it (the
+            selection's winner first; ``ReflectionConfig.final_ratio``).
         checks: the verification of the refined map.
         guided_trials, guided_chosen, guided: the same for the guided second selection, where the
             first one verified nothing (else empty / None).
@@ -103,6 +105,7 @@ class ReflectionDiagnostics:
     candidate_scores: list[float]
     trials: list[Trial] = field(default_factory=list)
     chosen: tuple[int, int] | None = None
+    finalists: list[tuple[int, int]] = field(default_factory=list)
     checks: Checks | None = None
     guided_trials: list[Trial] = field(default_factory=list)
     guided_chosen: tuple[int, int] | None = None
@@ -115,7 +118,8 @@ class ReflectionDiagnostics:
                "k0": list(self.k0), "k_refine": self.k_refine,
                "candidate_scores": list(self.candidate_scores)}
         if self.chosen is not None:
-            out.update(trials=[tuple(t) for t in self.trials], chosen=self.chosen)
+            out.update(trials=[tuple(t) for t in self.trials], chosen=self.chosen,
+                       finalists=[tuple(f) for f in self.finalists])
         if self.checks is not None:
             out.update(self.checks.to_dict())
         if self.guided is not None:
