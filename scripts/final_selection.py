@@ -11,6 +11,13 @@ distortion, the final checks (score, distortion, worst distortion, orientation v
 involution error, accepted), the ground truth's KLC10 rate and normalised error of the final map,
 and whether the detector's own selection picked it. The rows are what a rule over the finalists is
 chosen from (fit on some datasets, reported on the others).
+
+    python scripts/final_selection.py --summary final.jsonl      # the rule at several ratios
+
+``--summary`` reads such rows back and prints, per dataset, what the detector's rule (verified
+finalists within ``--ratios`` of the winner's selection distortion, lowest final distortion +
+``final_vote_weight`` (1 + vote)) would report: mean KLC10 rate, mesh rate (> 75 %), mean error, and
+the extra refinements per mesh, beside the selection's own choice.
 """
 from __future__ import annotations
 
@@ -67,12 +74,49 @@ def candidate_rows(dataset: str, name: str, path, cfg: ReflectionConfig, k_refin
     return rows
 
 
+def rule_pick(rows: list[dict], ratio: float, vote_weight: float) -> tuple[dict, int]:
+    """The row the final stage reports among one mesh's rows, and how many finalists it refined."""
+    best = min(r["select_distortion"] for r in rows)
+    fin = [r for r in rows if r["select_distortion"] <= ratio * best]
+    fin = [r for r in fin if r["accepted"]] or fin
+    return min(fin, key=lambda r: r["distortion"] + vote_weight * (1 + r["vote"])), len(fin)
+
+
+def summarize(path: Path, ratios: list[float], vote_weight: float) -> None:
+    """Per dataset: the selection's choice, then the final rule at each ratio."""
+    by_mesh: dict = {}
+    for line in path.read_text().splitlines():
+        r = json.loads(line)
+        by_mesh.setdefault((r["dataset"], r["mesh"]), []).append(r)
+    print("| dataset | rule | meshes | KLC10 rate | mesh rate | error x1e-3 | extra refinements / mesh |")
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for ds in sorted({d for d, _ in by_mesh}):
+        meshes = [rows for (d, _), rows in by_mesh.items() if d == ds]
+        rules = [("selection", lambda rows: (next((r for r in rows if r["chosen"]),
+                                                  min(rows, key=lambda r: r["select_distortion"])), 1))]
+        rules += [(f"final, ratio {x}", lambda rows, x=x: rule_pick(rows, x, vote_weight)) for x in ratios]
+        for label, pick in rules:
+            picks = [pick(rows) for rows in meshes]
+            n = len(picks)
+            print(f"| {ds} | {label} | {n} | {100 * sum(p['rate'] for p, _ in picks) / n:.1f} % | "
+                  f"{100 * sum(p['rate'] > 0.75 for p, _ in picks) / n:.1f} % | "
+                  f"{1e3 * sum(p['error'] for p, _ in picks) / n:.1f} | "
+                  f"{sum(k - 1 for _, k in picks) / n:.1f} |")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--dataset", default="FAUST", choices=["SCAPE", "TOSCA", "FAUST", "TOSCA_Isometric"])
     ap.add_argument("--names", nargs="*", default=None, help="only these meshes (default all)")
-    ap.add_argument("--out", type=Path, required=True, help="append JSON rows to this file")
+    ap.add_argument("--out", type=Path, help="append JSON rows to this file")
+    ap.add_argument("--summary", type=Path, help="summarise the rows of this file instead of detecting")
+    ap.add_argument("--ratios", type=float, nargs="+", default=[1.15, 1.3, 1.5])
     args = ap.parse_args(argv)
+    if args.summary is not None:
+        summarize(args.summary, args.ratios, ReflectionConfig().final_vote_weight)
+        return 0
+    if args.out is None:
+        ap.error("--out is required unless --summary is given")
     warnings.filterwarnings("ignore")
     meshes = list_benchmark(args.dataset)
     if args.names:

@@ -392,7 +392,7 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
 
 def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc: Tensor, basis: Basis,
                     cfg: ReflectionConfig, lap) -> tuple[tuple[int, int], Refined, list[tuple[int, int]]]:
-    """Stage 5: the selection's near-ties refined and verified too; the best verified one wins.
+    """Stage 4, **final**: the selection's near-ties refined and verified too; the best verified one wins.
 
     ``found`` is the chosen candidate refined (stage 4). Every other candidate whose selection
     distortion is within ``cfg.final_ratio`` of the chosen one's is refined and verified the same
