@@ -57,12 +57,17 @@ def check_faces(faces, n_verts: int, name: str = "faces") -> np.ndarray:
             f = f.astype(np.int64)
         else:
             raise ValueError(f"{name} must hold integer vertex indices, got {f.dtype}")
-    f = f.astype(np.int64, copy=False)
-    lo, hi = int(f.min()), int(f.max())
+    return check_index_range(f.astype(np.int64, copy=False), n_verts, f"{name} index", "indices")
+
+
+def check_index_range(ids: np.ndarray, n_verts: int, name: str, what: str = "ids") -> np.ndarray:
+    """``ids`` (int64) unchanged if every entry is a vertex id in [0, n_verts); else a ValueError
+    naming ``name`` and the span of the ``what``."""
+    lo, hi = int(ids.min()), int(ids.max())
     if lo < 0 or hi >= n_verts:
-        raise ValueError(f"{name} index out of range: indices span [{lo}, {hi}] but there are "
+        raise ValueError(f"{name} out of range: {what} span [{lo}, {hi}] but there are "
                          f"{n_verts} vertices")
-    return f
+    return ids
 
 
 def face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:

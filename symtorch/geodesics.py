@@ -34,7 +34,7 @@ import torch
 from scipy.sparse.csgraph import dijkstra
 from torch import Tensor
 
-from ._checks import check_mesh, check_verts, face_areas, to_numpy
+from ._checks import check_index_range, check_mesh, check_verts, face_areas, to_numpy
 
 log = logging.getLogger(__name__)
 
@@ -60,12 +60,7 @@ def _check_sources(sources, n_verts: int, name: str = "sources") -> np.ndarray:
         raise ValueError(f"{name} is empty")
     if not np.issubdtype(s.dtype, np.integer):
         raise ValueError(f"{name} must hold integer vertex ids, got {s.dtype}")
-    s = s.astype(np.int64, copy=False)
-    lo, hi = int(s.min()), int(s.max())
-    if lo < 0 or hi >= n_verts:
-        raise ValueError(f"{name} out of range: ids span [{lo}, {hi}] but there are {n_verts} "
-                         f"vertices")
-    return s
+    return check_index_range(s.astype(np.int64, copy=False), n_verts, name)
 
 
 def edge_graph(verts, faces) -> sp.csr_matrix:

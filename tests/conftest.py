@@ -3,8 +3,9 @@ location, device fixtures, shared meshes, and the ``data`` marker.
 
 A test is marked ``data`` here when it asks for the ``shared_data`` fixture or reads the shared data
 through ``shared_path`` (itself or through a helper of its module): ``pytest -m "not data"`` runs
-what needs nothing but the repository.
-Tests that start processes carry ``@pytest.mark.multiprocess`` themselves.
+what needs nothing but the repository. A test that starts another process (a subprocess, a worker
+pool, torchrun; itself or through a helper) is marked ``multiprocess`` the same way, where it does
+not carry the marker already.
 """
 import inspect
 import os
@@ -27,41 +28,44 @@ torch.set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
 
 
 _DATA_CALLS = ("shared_path(", "shared_data_dir(")
+#: what starts another process: a subprocess, a worker pool of precompute, torchrun
+_PROCESS_CALLS = ("subprocess.", "Popen(", "workers=2", '"--workers"', "torchrun", "multiprocessing.")
 
 
-def _data_helpers(module) -> set[str]:
-    """Names of the module's functions that read the shared data themselves."""
+def _helpers(module, calls) -> set[str]:
+    """Names of the module's functions whose own source makes one of ``calls``."""
     out = set()
     for name, fn in vars(module).items():
         if inspect.isfunction(fn) and fn.__module__ == module.__name__ and not name.startswith("test_"):
             try:
-                if any(c in inspect.getsource(fn) for c in _DATA_CALLS):
+                if any(c in inspect.getsource(fn) for c in calls):
                     out.add(name)
             except (OSError, TypeError):
                 pass
     return out
 
 
-def _reads_shared_data(item, helpers: set[str]) -> bool:
-    if "shared_data" in getattr(item, "fixturenames", ()):
-        return True
+def _makes(item, calls, helpers: set[str]) -> bool:
     try:
         src = inspect.getsource(item.function)
     except (AttributeError, OSError, TypeError):
         return False
-    return any(c in src for c in _DATA_CALLS) or any(f"{h}(" in src for h in helpers)
+    return any(c in src for c in calls) or any(f"{h}(" in src for h in helpers)
 
 
 def pytest_collection_modifyitems(config, items):
-    helpers: dict[str, set[str]] = {}
+    helpers: dict[str, tuple[set[str], set[str]]] = {}
     for item in items:
         module = getattr(item, "module", None)
         if module is None:
             continue
         if module.__name__ not in helpers:
-            helpers[module.__name__] = _data_helpers(module)
-        if _reads_shared_data(item, helpers[module.__name__]):
+            helpers[module.__name__] = _helpers(module, _DATA_CALLS), _helpers(module, _PROCESS_CALLS)
+        data, process = helpers[module.__name__]
+        if "shared_data" in getattr(item, "fixturenames", ()) or _makes(item, _DATA_CALLS, data):
             item.add_marker(pytest.mark.data)
+        if _makes(item, _PROCESS_CALLS, process) and item.get_closest_marker("multiprocess") is None:
+            item.add_marker(pytest.mark.multiprocess)
 
 
 @pytest.fixture(scope="session")

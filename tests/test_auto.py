@@ -117,6 +117,7 @@ def test_group_path_batched_stages_on_device(device):
     assert bool((agree.max(1).values >= 0.95).all()), agree.max(1).values
 
 
+@pytest.mark.extended
 def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
     """Watertight 152 (C2v: two mirrors and a half turn, all irreducible representations 1-D, so no
     repeated eigenvalues): the reflection path sees three equally consistent involutions of its
@@ -130,6 +131,7 @@ def test_auto_mode_finds_c2v_on_a_table_with_a_simple_spectrum(shared_data):
     assert detect_symmetries(v, f, group_tol=0).group.name == "Cs"  # the reflection path alone
 
 
+@pytest.mark.extended
 def test_auto_mode_factors_the_geodesic_solver_once_for_both_paths(shared_data, monkeypatch):
     """Watertight 152 goes through both paths (above); they share one heat-method factorisation."""
     import symtorch.detect.group_path as group_detect

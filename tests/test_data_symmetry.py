@@ -135,7 +135,7 @@ def test_dense_map_from_pairs_point_cloud_and_errors():
 
 
 # ------------------------------------------------------------------- remeshed real data (5k)
-SHAPES = [("FAUST", "tr_reg_000"), ("TOSCA_Isometric", "cat0")]
+SHAPES = [("FAUST", "tr_reg_000"), pytest.param("TOSCA_Isometric", "cat0", marks=pytest.mark.extended)]
 SOURCES = ["detect", "vts"]
 _CACHE = {}
 

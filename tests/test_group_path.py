@@ -34,8 +34,10 @@ def test_has_multiplicities():
 
 
 # --------------------------------------------------------------------------- shapes with known groups
-CASES = [("star_prism", "D5h", 20), ("ngon_prism", "D6h", 24), ("table", "C4v", 8), ("propeller", "C3", 3),
-         ("asymmetric", "C1", 1)]
+# the two prisms are extended: tests/test_group_shapes.py's quick run has a D_nh star and a box
+CASES = [pytest.param("star_prism", "D5h", 20, marks=pytest.mark.extended),
+         pytest.param("ngon_prism", "D6h", 24, marks=pytest.mark.extended),
+         ("table", "C4v", 8), ("propeller", "C3", 3), ("asymmetric", "C1", 1)]
 
 
 def _check_against_truth(res, verts, faces, true_maps, name, true_mats):
@@ -72,6 +74,7 @@ def test_code_built_shapes(name, group, order):
     assert set(res.timings) >= {"spectrum", "points", "candidates", "procrustes", "cluster", "refine"}
 
 
+@pytest.mark.extended
 def test_bent_star_keeps_its_intrinsic_group():
     v0, f = shapes.star_prism(SUB)
     v = bend(v0)
@@ -138,7 +141,8 @@ def test_paper_table_off(shared_data):
         assert (err < eps).mean() >= 0.95, f"{s.kind}: orbit errors / eps {np.round(err / eps, 2)}"
 
 
-@pytest.mark.parametrize("mesh_id", [121, 122, 143, 152, 156])
+@pytest.mark.parametrize("mesh_id", [pytest.param(m, marks=pytest.mark.extended) if m != 143 else m
+                                     for m in (121, 122, 143, 152, 156)])
 def test_watertight_orbits(shared_data, mesh_id):
     """Every detected element permutes the ground-truth orbits dihedrally, within eps.
 
@@ -164,6 +168,7 @@ def test_watertight_orbits(shared_data, mesh_id):
         assert rate >= 0.85, f"{mesh_id} {s.kind}: orbit rate {rate:.2f}"
 
 
+@pytest.mark.extended
 def test_fixed_size_icp_refinement_finds_the_same_group():
     """refine='icp' (the paper's spectral ICP at a fixed size, through ``batched_icp``) instead of
     the band-by-band upsampling: the table's C4v, every element a true symmetry."""
@@ -182,7 +187,8 @@ def test_fixed_size_icp_refinement_finds_the_same_group():
     _check_against_truth(res, v, f, shapes.symmetry_maps(v, mats), "table icp", mats)
 
 
-@pytest.mark.parametrize("n_eigen", [50, 70, 86, 110])
+@pytest.mark.parametrize("n_eigen", [pytest.param(50, marks=pytest.mark.extended), 70,
+                                     pytest.param(86, marks=pytest.mark.extended), 110])
 def test_group_does_not_depend_on_the_spectrum_size(n_eigen):
     """The descriptors (and so the candidate pruning) change with the number of eigenpairs; the
     n-gon prism's D6h must not (its rotations were pruned with 50, 70 and 86 at desc_tol=0.25, and

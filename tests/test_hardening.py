@@ -119,7 +119,7 @@ def build_corpus(d) -> None:
     _off(f"{d}/single_triangle.off", [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     write_mesh(f"{d}/good_blob.off", blob_v, blob_f)
     write_mesh(f"{d}/good_table.ply", *shapes.table(2))
-    # issue 14: cut files, degenerate geometry
+    # cut files, degenerate geometry
     with open(f"{d}/good_blob.off", "rb") as fh:
         data = fh.read()
     with open(f"{d}/cut_last_face.off", "wb") as fh:
@@ -318,7 +318,7 @@ def test_huge_mesh_info(tmp_path, capsys, monkeypatch):
     assert info["is_closed"] and info["genus"] == 1 and info["n_components"] == 1
 
 
-# ------------------------------------------------------------------- issue 14: the rough edges
+# ------------------------------------------------------------------------------- the rough edges
 
 def test_output_that_is_no_regular_file_is_refused(tmp_path, capsys):
     """--out onto a FIFO, a device node or a symbolic link: refused, the target left as it is."""

@@ -384,7 +384,7 @@ def test_report_rejects_bad_input():
 
 
 # ------------------------------------------- what the header promises against what the file holds
-# (issue 14: cut files were read with exit 0, a face pointing at vertex 300 instead of 3001)
+# (once, cut files were read with exit 0, a face pointing at vertex 300 instead of 3001)
 
 def _ico_file(tmp_path, ext: str, subdivisions: int = 2):
     """An icosphere written by write_mesh (OFF/OBJ text, PLY binary): (path, bytes, V, F)."""

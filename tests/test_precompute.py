@@ -235,7 +235,7 @@ def test_k_refine_reaches_the_detector_and_the_settings(tmp_path, capsys):
 
 
 # --------------------------------------------------------------- faults: real signals, processes
-# (issue 14: a worker killed with -9 lost its mesh; Ctrl-C printed tracebacks; a second run
+# (once: a worker killed with -9 lost its mesh; Ctrl-C printed tracebacks; a second run
 # deleted the first one's files; orphaned torchrun ranks slept for two hours; damaged caches
 # were "already done")
 

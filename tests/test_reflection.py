@@ -32,7 +32,7 @@ def test_mirror_blob_reflection_is_recovered_exactly(mirror3):
     assert res.group.name == "Cs" and res.group.order == 2
 
 
-@pytest.mark.parametrize("subdivisions", [3, 4])
+@pytest.mark.parametrize("subdivisions", [3, pytest.param(4, marks=pytest.mark.extended)])
 def test_asymmetric_shape_gives_the_identity_alone(subdivisions):
     v, f = asymmetric(subdivisions)
     res = detect_symmetries(v, f, mode="reflection")

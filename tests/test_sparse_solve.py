@@ -91,6 +91,7 @@ print(F.backend)
 """
 
 
+@pytest.mark.multiprocess
 def test_many_factorisations_leave_the_heap_intact():
     """cholespy 2.2's CSC input path freed memory it did not own: factorising small matrices of
     different sizes one after another corrupted the heap (glibc's checks abort the process)."""
