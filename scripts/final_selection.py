@@ -79,7 +79,7 @@ def rule_pick(rows: list[dict], ratio: float, vote_weight: float) -> tuple[dict,
     best = min(r["select_distortion"] for r in rows)
     fin = [r for r in rows if r["select_distortion"] <= ratio * best]
     fin = [r for r in fin if r["accepted"]] or fin
-    return min(fin, key=lambda r: r["distortion"] + vote_weight * (1 + r["vote"])), len(fin)
+    return min(fin, key=lambda r: reflect.final_cost(r["distortion"], r["vote"], vote_weight)), len(fin)
 
 
 def summarize(path: Path, ratios: list[float], vote_weight: float) -> None:

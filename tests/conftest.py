@@ -32,39 +32,37 @@ _DATA_CALLS = ("shared_path(", "shared_data_dir(")
 _PROCESS_CALLS = ("subprocess.", "Popen(", "workers=2", '"--workers"', "torchrun", "multiprocessing.")
 
 
-def _helpers(module, calls) -> set[str]:
-    """Names of the module's functions whose own source makes one of ``calls``."""
-    out = set()
-    for name, fn in vars(module).items():
-        if inspect.isfunction(fn) and fn.__module__ == module.__name__ and not name.startswith("test_"):
-            try:
-                if any(c in inspect.getsource(fn) for c in calls):
-                    out.add(name)
-            except (OSError, TypeError):
-                pass
-    return out
-
-
-def _makes(item, calls, helpers: set[str]) -> bool:
+def _source(fn) -> str:
     try:
-        src = inspect.getsource(item.function)
-    except (AttributeError, OSError, TypeError):
-        return False
-    return any(c in src for c in calls) or any(f"{h}(" in src for h in helpers)
+        return inspect.getsource(fn)
+    except (OSError, TypeError):
+        return ""
+
+
+def _helper_sources(module) -> dict[str, str]:
+    """The source of each of the module's own functions that is not a test."""
+    return {name: _source(fn) for name, fn in vars(module).items()
+            if inspect.isfunction(fn) and fn.__module__ == module.__name__ and not name.startswith("test_")}
+
+
+def _makes(src: str, calls, helpers: dict[str, str]) -> bool:
+    """Whether ``src`` makes one of ``calls`` itself or through a helper whose source does."""
+    return any(c in src for c in calls) or any(
+        f"{name}(" in src and any(c in body for c in calls) for name, body in helpers.items())
 
 
 def pytest_collection_modifyitems(config, items):
-    helpers: dict[str, tuple[set[str], set[str]]] = {}
+    helpers: dict[str, dict[str, str]] = {}
     for item in items:
         module = getattr(item, "module", None)
         if module is None:
             continue
         if module.__name__ not in helpers:
-            helpers[module.__name__] = _helpers(module, _DATA_CALLS), _helpers(module, _PROCESS_CALLS)
-        data, process = helpers[module.__name__]
-        if "shared_data" in getattr(item, "fixturenames", ()) or _makes(item, _DATA_CALLS, data):
+            helpers[module.__name__] = _helper_sources(module)
+        src, own = _source(getattr(item, "function", None)), helpers[module.__name__]
+        if "shared_data" in getattr(item, "fixturenames", ()) or _makes(src, _DATA_CALLS, own):
             item.add_marker(pytest.mark.data)
-        if _makes(item, _PROCESS_CALLS, process) and item.get_closest_marker("multiprocess") is None:
+        if _makes(src, _PROCESS_CALLS, own) and item.get_closest_marker("multiprocess") is None:
             item.add_marker(pytest.mark.multiprocess)
 
 

@@ -9,7 +9,7 @@ import torch
 
 from symtorch import detect_symmetries, laplacian_spectrum
 from symtorch.detect import ReflectionConfig
-from symtorch.detect.reflection import detect_reflection
+from symtorch.detect.reflection import detect_reflection, final_cost
 from symtorch.geodesics import GeodesicSolver
 from symtorch.shapes import asymmetric
 
@@ -116,8 +116,9 @@ def test_near_ties_of_the_selection_are_refined_to_the_end():
     da = alone.diagnostics.reflection
     assert da.finalists[0] == da.chosen and alone.reflection.score > 0.9
     # a finalist replaces the selection's winner only with a lower final cost
-    assert d.checks.distortion + 0.5 * (1 + d.checks.orientation) <= \
-        da.checks.distortion + 0.5 * (1 + da.checks.orientation) + 1e-9
+    w = ReflectionConfig().final_vote_weight
+    assert final_cost(d.checks.distortion, d.checks.orientation, w) <= \
+        final_cost(da.checks.distortion, da.checks.orientation, w) + 1e-9
 
 
 def test_final_stage_overrules_a_selection_misled_by_one_limb(shared_data):

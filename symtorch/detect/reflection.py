@@ -69,8 +69,8 @@ from .verification import (descriptor_gap, involution_distortion, involution_err
                            orientation_vote, vertex_normals)
 
 __all__ = ["detect_reflection", "reflection_basis", "find_candidates", "candidate_fmaps",
-           "select_candidate", "refine_and_verify", "second_opinion", "map_agreement",
-           "orientation_guide", "reflection_group", "Basis",
+           "select_candidate", "refine_and_verify", "final_selection", "final_cost", "second_opinion",
+           "map_agreement", "orientation_guide", "reflection_group", "Basis",
            "Candidates", "SampleSet", "Selection", "Refined"]
 
 
@@ -408,7 +408,7 @@ def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc:
         return chosen.chosen, found, [chosen.chosen]
 
     def cost(r: Refined) -> float:
-        return r.checks.distortion + cfg.final_vote_weight * (1.0 + r.checks.orientation)
+        return final_cost(r.checks.distortion, r.checks.orientation, cfg.final_vote_weight)
 
     best = (chosen.chosen, found)
     for key, Cs in finalists[1:]:
@@ -417,6 +417,12 @@ def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc:
             best = (key, other)
     lap("final")
     return best[0], best[1], [key for key, _ in finalists]
+
+
+def final_cost(distortion: float, vote: float, vote_weight: float) -> float:
+    """What the final stage minimises over the verified finalists: ``distortion + vote_weight *
+    (1 + vote)`` (a reflection's orientation vote is -1; one limb mirrored onto itself is less)."""
+    return distortion + vote_weight * (1.0 + vote)
 
 
 def second_opinion(C0: Tensor, cands: Candidates, chosen: int, samples: SampleSet, basis: Basis,
