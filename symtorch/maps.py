@@ -35,6 +35,19 @@ def p2p_to_fmap(p2p: Tensor, evecs: Tensor, mass: Tensor, evecs_src: Tensor | No
     return (src * mass[:, None]).mT @ evecs[p2p]
 
 
+def least_squares(A: Tensor, B: Tensor) -> Tensor:
+    """``argmin_X ||A X - B||`` for a full-column-rank ``A [N, K]`` (``B [N, M]``), in float64.
+
+    Solved by QR (LAPACK ``gels``), which gives the same bits on every run; torch's CPU default
+    (``gelsy``, pivoted QR) does not, and a ground-truth functional map that differs in its last
+    bits from run to run makes two trainings from one seed drift apart.
+
+    Returns:
+        [K, M] in ``A``'s dtype.
+    """
+    return torch.linalg.lstsq(A.double(), B.double(), driver="gels").solution.to(A.dtype)
+
+
 def nearest_neighbors(queries: Tensor, points: Tensor, chunk: int = 4096) -> Tensor:
     """Index of the nearest row of ``points`` for each row of ``queries``.
 

@@ -18,6 +18,7 @@ from torch import Tensor
 from torch.utils.data import Dataset
 
 from ..io import atomic_write, read_mesh
+from ..maps import least_squares
 from .layouts import MESH_SUFFIXES, class_key, corres_dir, find_layout, read_geodesic_matrix
 
 log = logging.getLogger(__name__)
@@ -493,7 +494,7 @@ def corr_to_fmap(corr_x: Tensor, corr_y: Tensor, evecs_x: Tensor, evecs_y: Tenso
     ok = (corr_x >= 0) & (corr_y >= 0)
     cx, cy = corr_x[ok], corr_y[ok]
     w = mass_y[cy].sqrt()[:, None]
-    return torch.linalg.lstsq(w * evecs_y[cy], w * evecs_x[cx]).solution
+    return least_squares(w * evecs_y[cy], w * evecs_x[cx])
 
 
 class PairDataset(Dataset):

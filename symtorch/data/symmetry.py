@@ -253,13 +253,13 @@ def dense_map_from_pairs(src: Tensor, dst: Tensor, verts: Tensor, faces: Tensor 
         raise ValueError(f"method={method!r} needs evecs (run ComputeSpectrum first)")
     if method == "local" and faces is None:
         raise ValueError("method='local' needs faces (use 'nearest' or 'spectral' for a point cloud)")
-    from ..maps import nearest_neighbors, nearest_neighbors_among
+    from ..maps import least_squares, nearest_neighbors, nearest_neighbors_among
 
     device = verts.device
     src_all, dst_all = src.to(device), dst.to(device)
     src, dst = _first_pairs(src_all, dst_all)
     if method in ("spectral", "local"):
-        C = torch.linalg.lstsq(evecs[src_all], evecs[dst_all]).solution  # [K, K], every pair
+        C = least_squares(evecs[src_all], evecs[dst_all])  # [K, K], every pair
         query = evecs @ C                                                 # [V, K]
     if method == "spectral":
         p2p = nearest_neighbors(query, evecs)
