@@ -187,6 +187,9 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
     model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
                     symmetrize=run == "symmetrize")
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
+    # cosine decay to 0 over the run: the model scored is not one noisy Adam step away from another
+    sched = (torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=args.steps)
+             if args.schedule == "cosine" else None)
     # a symmetrized network sees a mirror image through its own group average: no augmentation
     augment = (RandomSymmetry(mode="mirror", generator=g)
                if run not in ("baseline", "symmetrize") else None)
@@ -219,6 +222,8 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
         opt.zero_grad()
         loss.backward()
         opt.step()
+        if sched is not None:
+            sched.step()
         if (step + 1) % max(1, args.steps // 5) == 0:
             log.info(f"{run}: step {step + 1}/{args.steps} loss {float(loss):.4f} "
                      f"[{time.perf_counter() - t0:.0f} s]")
@@ -299,6 +304,8 @@ def main() -> None:
     ap.add_argument("--width", type=int, default=64)
     ap.add_argument("--out", type=int, default=64, help="feature size")
     ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--schedule", choices=["constant", "cosine"], default="constant",
+                    help="learning rate: constant, or cosine decay to 0 over --steps")
     ap.add_argument("--w-equiv", type=float, default=1.0)
     ap.add_argument("--w-orient", type=float, default=1.0)
     ap.add_argument("--parts", action="store_true",
@@ -352,7 +359,7 @@ def main() -> None:
         if run != "baseline" and args.mirror == "pair":
             tag = "_pair"
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"
-                                         f"_n{args.steps}.pt")
+                                         f"_n{args.steps}{'_cos' if args.schedule == 'cosine' else ''}.pt")
         if args.reuse and saved.exists():  # evaluate a model trained by an earlier call
             model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
                             symmetrize=run == "symmetrize")
@@ -366,7 +373,7 @@ def main() -> None:
         for post, res in results.items():
             run_name = run if args.mirror == "shape" or run == "baseline" else f"{run}-pair"
             row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run_name + post,
-                       symmetries=args.symmetries,
+                       symmetries=args.symmetries, schedule=args.schedule,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
                        flipped=res.flipped_share, up_to_symmetry=res.mean_up_to_symmetry,
                        error_sym=res.mean_sym, train_s=round(t_train, 1), steps=args.steps,

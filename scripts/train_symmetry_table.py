@@ -61,12 +61,14 @@ def main() -> None:
     ap.add_argument("--by-seed", action="store_true",
                     help="the runs and post-processes per seed, and their means")
     ap.add_argument("--steps", type=int, default=300, help="the rows of runs this long (default 300)")
+    ap.add_argument("--schedule", choices=["constant", "cosine"], default="constant",
+                    help="the rows of runs with this learning-rate schedule (default constant)")
     args = ap.parse_args()
     rows = {}
     for path in args.rows:
         for line in path.read_text().splitlines():
             r = json.loads(line)
-            if r.get("steps", 300) != args.steps:
+            if r.get("steps", 300) != args.steps or r.get("schedule", "constant") != args.schedule:
                 continue
             rows[(r["dataset"], r["regime"], r["run"], r.get("seed", 0), r.get("symmetries"))] = r
     if args.by_seed:
