@@ -64,9 +64,12 @@ from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
 from symtorch.flips import VoteSmoother, resolve_symmetry_parts
-from symtorch.tta import mirror_pair, reflection_average, symmetrized_features
+from symtorch.tta import mirror_pair, reflection_average, reflection_index, symmetrized_features
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
+from symtorch.detect.verification import isometry_score
+from symtorch.geodesics import GeodesicSolver
+from symtorch.sampling import farthest_point_sampling
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = ("baseline", "augment", "symmetrize", "losses", "full")
@@ -119,6 +122,37 @@ def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth") -> Compo
     sym = SymmetryFromCorrespondence() if symmetries == "ground-truth" else DetectSymmetries()
     return Compose([NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors(n_hks=0, n_wks=n_wks),
                     sym, ComputeOrientationOperators(), ComputeGradientOperator()])
+
+
+def reflection_distortions(data: list[dict], path: Path, n_samples: int = 64) -> dict[str, float]:
+    """Each shape's reflection distortion (``verification.isometry_score`` on ``n_samples``
+    farthest-point samples of the unit-area shape, KLC radii; inf without a reflection), kept in
+    ``path`` (JSON, by shape name) so that later calls read it back."""
+    known = json.loads(path.read_text()) if path.exists() else {}
+    for s in data:
+        if s["name"] in known:
+            continue
+        r = reflection_index(s)
+        if r is None:
+            known[s["name"]] = math.inf
+            continue
+        solver = GeodesicSolver(s["verts"].double(), s["faces"])
+        samples = farthest_point_sampling(s["verts"].double(), n_samples)
+        known[s["name"]] = isometry_score(solver, s["sym_p2p"][r].long(), samples).distortion
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(known))
+    return known
+
+
+def drop_distorted_reflections(data: list[dict], distortions: dict[str, float], limit: float) -> list[dict]:
+    """The samples with the reflection of every shape distorted by more than ``limit`` (KLC radii)
+    removed (``sym_reverses`` all False): such a shape is neither symmetrized nor mirrored."""
+    out = []
+    for s in data:
+        if distortions[s["name"]] > limit and "sym_reverses" in s:
+            s = dict(s, sym_reverses=torch.zeros_like(torch.as_tensor(s["sym_reverses"])))
+        out.append(s)
+    return out
 
 
 # ------------------------------------------------------------------------------------------ model
@@ -308,6 +342,9 @@ def main() -> None:
                     help="learning rate: constant, or cosine decay to 0 over --steps")
     ap.add_argument("--w-equiv", type=float, default=1.0)
     ap.add_argument("--w-orient", type=float, default=1.0)
+    ap.add_argument("--max-distortion", type=float, default=None,
+                    help="use a shape's reflection only where its distortion (KLC radii, 64 samples) "
+                         "is at most this; the others are neither symmetrized nor mirrored")
     ap.add_argument("--parts", action="store_true",
                     help="also score the part-wise flip vote (+parts, +tta+parts; slower)")
     ap.add_argument("--n-points", type=int, default=500, help="template points scored per pair")
@@ -330,6 +367,11 @@ def main() -> None:
     data = [ds[i] for i in range(len(ds))]
     names = [s["name"] for s in data]
     log.info(f"{args.dataset}: {len(data)} shapes, precompute/load {time.perf_counter() - t0:.0f} s")
+    if args.max_distortion is not None:
+        dist = reflection_distortions(data, args.cache / f"{args.dataset}-{args.symmetries}-distortion.json")
+        data = drop_distorted_reflections(data, dist, args.max_distortion)
+        log.info(f"reflections kept (distortion <= {args.max_distortion}): "
+                 f"{sum(d <= args.max_distortion for d in dist.values())} of {len(dist)}")
     within = args.dataset == "TOSCA_Isometric"
     train_idx, test_idx = split_shapes(names, args.dataset, args.seed)
     if args.regime == "quarter":
@@ -359,7 +401,8 @@ def main() -> None:
         if run != "baseline" and args.mirror == "pair":
             tag = "_pair"
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"
-                                         f"_n{args.steps}{'_cos' if args.schedule == 'cosine' else ''}.pt")
+                                         f"_n{args.steps}{'_cos' if args.schedule == 'cosine' else ''}"
+                                         f"{'' if args.max_distortion is None else f'_d{args.max_distortion}'}.pt")
         if args.reuse and saved.exists():  # evaluate a model trained by an earlier call
             model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
                             symmetrize=run == "symmetrize")
@@ -372,8 +415,11 @@ def main() -> None:
         results = evaluate(model, data, test_pairs, args, evaluator)
         for post, res in results.items():
             run_name = run if args.mirror == "shape" or run == "baseline" else f"{run}-pair"
+            if args.max_distortion is not None and run != "baseline":
+                run_name += f"-d{args.max_distortion:g}"
             row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run_name + post,
                        symmetries=args.symmetries, schedule=args.schedule,
+                       max_distortion=args.max_distortion,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
                        flipped=res.flipped_share, up_to_symmetry=res.mean_up_to_symmetry,
                        error_sym=res.mean_sym, train_s=round(t_train, 1), steps=args.steps,
