@@ -9,13 +9,13 @@ import pytest
 import torch
 
 from symtorch import detect_symmetries, laplacian_spectrum, shapes
-from symtorch.detect.group_path import has_multiplicities
+from symtorch.detect.group_path import has_multiplicities, near_symmetry_coset
 from symtorch.eval import klc_threshold
 from symtorch.eval.groups import dihedral_orbit_errors, element_rates
 from symtorch.geodesics import GeodesicSolver
 from symtorch.groups import check_group
 
-from shapes import SUB, detect_quietly, matrix_order  # tests/shapes.py
+from shapes import SUB, armed_ball, detect_quietly, matrix_order  # tests/shapes.py
 
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -215,3 +215,29 @@ def test_min_order_stops_after_the_coarse_stage():
         asked = detect_group(v, f, spec, k=20, k_refine=40, min_order=3)
     assert full.group.name == "Cs" and full.diagnostics.group.n_after_closure == 2
     assert asked.group.order == 1 and "fewer than the 3 asked for" in asked.diagnostics.group.reason
+
+
+def test_near_symmetry_coset_rule():
+    rev = [False, False, False, False, True, True, True, True]  # C4v: identity, 3 rotations, 4 mirrors
+    # eight chiral arms: rotations near-exact, the mirrors a quarter radius off (measured 0.005 / 0.25)
+    assert near_symmetry_coset(rev, [0.0, 0.004, 0.006, 0.005, 0.24, 0.25, 0.25, 0.24])
+    # one true group: both halves of one size, or both small (twelve arms: 0.007 / 0.032)
+    assert not near_symmetry_coset(rev, [0.0, 0.05, 0.07, 0.06, 0.04, 0.05, 0.05, 0.04])
+    assert not near_symmetry_coset(rev, [0.0, 0.007, 0.007, 0.007, 0.03, 0.03, 0.035, 0.03])
+    # Cs (no rotation to compare with) and rotation groups keep what they have
+    assert not near_symmetry_coset([False, True], [0.0, 0.4])
+    assert not near_symmetry_coset([False, False, False], [0.0, 0.3, 0.3])
+
+
+@pytest.mark.extended
+def test_mirrors_on_chiral_arms_are_flagged_as_near_symmetries():
+    # eight arms, each with a bump on one side: the exact group is C8; the mirrors move the bumps
+    # by a quarter EPS_KLC while the rotations are near-exact, and the result says so
+    v, f, _ = armed_ball(8, chiral=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = detect_symmetries(v, f)
+    assert len(caught) == 1 and "near-symmetries" in str(caught[0].message)
+    assert "8 rotations alone" in str(caught[0].message)
+    mirrors = res.diagnostics.group.near_symmetry_coset
+    assert mirrors is not None and len(mirrors) == 8 and min(mirrors) > 0.1

@@ -38,8 +38,9 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
 10. **group** (:func:`group_of_elements`): the largest set of verified elements closed under
     composition of their *maps* (``groups.largest_subgroup``); table, inverses, orders and name
     (``groups.group_info``), with orientation flags that are a homomorphism of the table and agree
-    best with the per-element votes; elements in the order of the paper's Table 3 (identity,
-    rotation powers, reflection coset).
+    best with the per-element votes (mirrors an order of magnitude more distorted than near-exact
+    rotations are kept, flagged and warned about: :func:`near_symmetry_coset`); elements in the
+    order of the paper's Table 3 (identity, rotation powers, reflection coset).
 
 The confidence of an element is ``exp(-distortion^2)``. Knobs: :class:`~symtorch.detect.config.GroupConfig`.
 
@@ -80,7 +81,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["detect_group", "GroupBasis", "PointSet", "group_basis", "invariant_point_set",
            "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives",
-           "group_of_elements", "has_multiplicities"]
+           "group_of_elements", "near_symmetry_coset", "has_multiplicities"]
 
 
 class GroupBasis(NamedTuple):
@@ -367,6 +368,37 @@ def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tupl
     return reps, [int(c) for c in counts.tolist()]
 
 
+#: near_symmetry_coset's rule: the reversing elements' median distortion (KLC radii) above this ...
+COSET_MIN_DISTORTION = 0.1
+#: ... and this many times the rotations' (each at least COSET_FLOOR)
+COSET_RATIO = 10.0
+COSET_FLOOR = 0.01
+
+
+def near_symmetry_coset(reversing, distortion) -> bool:
+    """Whether the orientation-reversing elements are a near-symmetry riding on exact rotations.
+
+    The elements of one exact group share the mesh's discretisation, so their distortions are of
+    one size; where every rotation is near-exact and the mirrors are an order of magnitude more
+    distorted, the mirrors are a near-symmetry: either a shape made chiral by small features (the
+    exact group is the rotations) or mirrors that hold only approximately (arms swept sideways by a
+    near-isometry). The two read alike (a fifth to a quarter EPS_KLC), so the group path keeps the
+    mirrors and says so (diagnostics, one warning). True: the reversing elements' median distortion exceeds
+    :data:`COSET_MIN_DISTORTION` and :data:`COSET_RATIO` times the median of the non-identity
+    rotations' (at least :data:`COSET_FLOOR`). False where either half is empty (Cs keeps its
+    mirror: nothing to compare it with).
+
+    Args:
+        reversing: [G] bool per element (identity first); distortion: [G] floats, KLC radii.
+    """
+    rot = [d for d, r in list(zip(distortion, reversing))[1:] if not r]
+    mir = [d for d, r in zip(distortion, reversing) if r]
+    if not rot or not mir:
+        return False
+    m_rot, m_mir = float(np.median(rot)), float(np.median(mir))
+    return m_mir > COSET_MIN_DISTORTION and m_mir > COSET_RATIO * max(m_rot, COSET_FLOOR)
+
+
 def group_of_elements(elements: list[Element], geo: Geometry, faces,
                       diag: GroupDiagnostics) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
@@ -379,6 +411,15 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces,
     elements = [elements[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, torch.as_tensor(faces))
                                          for e in elements])
+    if near_symmetry_coset(rev, [e.distortion for e in elements]):
+        n_rot = sum(not r for r in rev)
+        mir = [e.distortion for e, r in zip(elements, rev) if r]
+        rot = [e.distortion for e, r in list(zip(elements, rev))[1:] if not r]
+        diag = replace(diag, near_symmetry_coset=[round(d, 4) for d in mir])
+        warnings.warn(f"the {len(mir)} orientation-reversing elements are near-symmetries riding on "
+                      f"near-exact rotations (median distortion {np.median(mir):.3f} against "
+                      f"{np.median(rot):.3f} EPS_KLC): kept, but the exact group may be the "
+                      f"{n_rot} rotations alone (diagnostics.group.near_symmetry_coset)", stacklevel=2)
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
     table, rev = torch.as_tensor(table, dtype=torch.long), torch.as_tensor(rev, dtype=torch.bool)
     order = canonical_order(table, rev, [e.distortion for e in elements])

@@ -149,7 +149,9 @@ class GroupDiagnostics:
             n_after_closure: elements after closure.
         rejected_exact: exact distortions of the elements rejected after upsampling; dropped:
             elements left out of the largest closed subset; cayley_max_residual: largest residual of
-            the matrices' table; distortion: per element of the result.
+            the matrices' table; distortion: per element of the result; near_symmetry_coset: the
+            distortions of the orientation-reversing elements where they read as near-symmetries
+            on near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`).
         name, order: the group found; reason: why the trivial group was returned early.
     """
 
@@ -173,6 +175,7 @@ class GroupDiagnostics:
     n_after_closure: int | None = None
     rejected_exact: list[float] | None = None
     dropped: list[int] | None = None
+    near_symmetry_coset: list[float] | None = None
     cayley_max_residual: float | None = None
     distortion: list[float] | None = None
     name: str = "C1"
