@@ -194,6 +194,20 @@ GROUP_SHAPES = [
     ("chiral6", lambda: armed_ball(6, chiral=True), "C6", 6, 0),
     ("blades3", lambda: twisted_blades(3), "D3", 6, 0),
     ("blades4", lambda: twisted_blades(4), "D4", 8, 0),
+    # added 2026-12-03, run once before any change was made for them (all found but chiral 8 arms:
+    # tests/test_group_path.py)
+    ("star3_thin", lambda: star_slab(3, 0.25), "D3h", 12, 0),
+    ("star8_thin", lambda: star_slab(8, 0.25), "D8h", 32, 0),
+    ("star4_h035", lambda: star_slab(4, 0.35), "D4h", 16, 0),
+    ("star6_h03_bent", lambda: star_slab(6, 0.3), "D6h", 24, 6.0),
+    ("arms4", lambda: armed_ball(4), "C4v", 8, 0),
+    ("arms5", lambda: armed_ball(5), "C5v", 10, 0),
+    ("arms12", lambda: armed_ball(12), "C12v", 24, 0),
+    ("arms6_long", lambda: armed_ball(6, length=1.2, elev=-10.0), "C6v", 12, 0),
+    ("chiral4", lambda: armed_ball(4, chiral=True), "C4", 4, 0),
+    ("blades2", lambda: twisted_blades(2), "D2", 4, 0),
+    ("blades5", lambda: twisted_blades(5), "D5", 10, 0),
+    ("box_1_08_05", lambda: subdivided_box((1.0, 0.8, 0.5), 0.07), "D2h", 8, 0),
 ]
 
 
