@@ -41,6 +41,7 @@ than to the truth (flipped), error up to symmetry. Every run is also scored afte
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import logging
 import math
@@ -126,22 +127,31 @@ def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth") -> Compo
 
 def reflection_distortions(data: list[dict], path: Path, n_samples: int = 64) -> dict[str, float]:
     """Each shape's reflection distortion (``verification.isometry_score`` on ``n_samples``
-    farthest-point samples of the unit-area shape, KLC radii; inf without a reflection), kept in
-    ``path`` (JSON, by shape name) so that later calls read it back."""
+    farthest-point samples of the unit-area shape, KLC radii; inf without a reflection), by shape name.
+
+    Kept in ``path`` (JSON) under a key of the reflection's vertex map itself (a digest) and
+    ``n_samples``, so that a later call reads it back and a changed reflection is measured again.
+    """
     known = json.loads(path.read_text()) if path.exists() else {}
+    out, new = {}, False
     for s in data:
-        if s["name"] in known:
-            continue
         r = reflection_index(s)
-        if r is None:
-            known[s["name"]] = math.inf
-            continue
-        solver = GeodesicSolver(s["verts"].double(), s["faces"])
-        samples = farthest_point_sampling(s["verts"].double(), n_samples)
-        known[s["name"]] = isometry_score(solver, s["sym_p2p"][r].long(), samples).distortion
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(known))
-    return known
+        R = None if r is None else s["sym_p2p"][r].long()
+        key = (f"{s['name']}:{n_samples}:"
+               f"{'none' if R is None else hashlib.sha1(R.numpy().tobytes()).hexdigest()[:16]}")
+        if key not in known:
+            new = True
+            if R is None:
+                known[key] = math.inf
+            else:
+                solver = GeodesicSolver(s["verts"].double(), s["faces"])
+                samples = farthest_point_sampling(s["verts"].double(), n_samples)
+                known[key] = isometry_score(solver, R, samples).distortion
+        out[s["name"]] = known[key]
+    if new:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(known))
+    return out
 
 
 def drop_distorted_reflections(data: list[dict], distortions: dict[str, float], limit: float) -> list[dict]:

@@ -219,7 +219,7 @@ def test_min_order_stops_after_the_coarse_stage():
 
 def test_near_symmetry_coset_rule():
     rev = [False, False, False, False, True, True, True, True]  # C4v: identity, 3 rotations, 4 mirrors
-    # eight chiral arms: rotations near-exact, the mirrors a quarter radius off (measured 0.005 / 0.25)
+    # eight chiral arms: rotations near-exact, the mirrors a fifth of a radius off (measured 0.008 / 0.199)
     assert near_symmetry_coset(rev, [0.0, 0.004, 0.006, 0.005, 0.24, 0.25, 0.25, 0.24])
     # one true group: both halves of one size, or both small (twelve arms: 0.007 / 0.032)
     assert not near_symmetry_coset(rev, [0.0, 0.05, 0.07, 0.06, 0.04, 0.05, 0.05, 0.04])
@@ -232,7 +232,7 @@ def test_near_symmetry_coset_rule():
 @pytest.mark.extended
 def test_mirrors_on_chiral_arms_are_flagged_as_near_symmetries():
     # eight arms, each with a bump on one side: the exact group is C8; the mirrors move the bumps
-    # by a quarter EPS_KLC while the rotations are near-exact, and the result says so
+    # by a fifth of an EPS_KLC while the rotations are near-exact, and the result says so
     v, f, _ = armed_ball(8, chiral=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

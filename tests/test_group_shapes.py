@@ -1,5 +1,5 @@
 """The group path on a wider set of shapes with exactly known groups: D_nh star slabs
-of several n and thicknesses, C_nv balls with 6-10 drooping arms, chiral C_n, D_n twisted blades,
+of several n and thicknesses, C_nv balls with 4-12 drooping arms, chiral C_n, D_n twisted blades,
 a subdivided box, bent and swept versions (``tests/shapes.py``, ``GROUP_SHAPES``).
 
 Each detected element is matched to a true one (``eval.groups.element_rates``: the share of 100

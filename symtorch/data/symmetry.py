@@ -260,7 +260,7 @@ def dense_map_from_pairs(src: Tensor, dst: Tensor, verts: Tensor, faces: Tensor 
     src, dst = _first_pairs(src_all, dst_all)
     if method in ("spectral", "local"):
         C = least_squares(evecs[src_all], evecs[dst_all])  # [K, K], every pair
-        query = evecs @ C                                                 # [V, K]
+        query = evecs @ C                                  # [V, K]
     if method == "spectral":
         p2p = nearest_neighbors(query, evecs)
     elif faces is not None:

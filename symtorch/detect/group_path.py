@@ -382,21 +382,26 @@ def near_symmetry_coset(reversing, distortion) -> bool:
     one size; where every rotation is near-exact and the mirrors are an order of magnitude more
     distorted, the mirrors are a near-symmetry: either a shape made chiral by small features (the
     exact group is the rotations) or mirrors that hold only approximately (arms swept sideways by a
-    near-isometry). The two read alike (a fifth to a quarter EPS_KLC), so the group path keeps the
-    mirrors and says so (diagnostics, one warning). True: the reversing elements' median distortion exceeds
-    :data:`COSET_MIN_DISTORTION` and :data:`COSET_RATIO` times the median of the non-identity
+    near-isometry). The two read alike (BENCHMARKS.md, "Wider shapes"), so the group path keeps
+    the mirrors and says so (diagnostics, one warning). True: the reversing elements' median
+    distortion exceeds :data:`COSET_MIN_DISTORTION` and :data:`COSET_RATIO` times the median of the non-identity
     rotations' (at least :data:`COSET_FLOOR`). False where either half is empty (Cs keeps its
     mirror: nothing to compare it with).
 
     Args:
         reversing: [G] bool per element (identity first); distortion: [G] floats, KLC radii.
     """
-    rot = [d for d, r in list(zip(distortion, reversing))[1:] if not r]
-    mir = [d for d, r in zip(distortion, reversing) if r]
+    rot, mir = _by_orientation(reversing, distortion)
     if not rot or not mir:
         return False
     m_rot, m_mir = float(np.median(rot)), float(np.median(mir))
     return m_mir > COSET_MIN_DISTORTION and m_mir > COSET_RATIO * max(m_rot, COSET_FLOOR)
+
+
+def _by_orientation(reversing, distortion) -> tuple[list[float], list[float]]:
+    """(the non-identity rotations' distortions, the reversing elements'); identity first."""
+    pairs = list(zip(distortion, reversing))
+    return [d for d, r in pairs[1:] if not r], [d for d, r in pairs if r]
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces,
@@ -411,18 +416,18 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces,
     elements = [elements[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, torch.as_tensor(faces))
                                          for e in elements])
-    if near_symmetry_coset(rev, [e.distortion for e in elements]):
-        n_rot = sum(not r for r in rev)
-        mir = [e.distortion for e, r in zip(elements, rev) if r]
-        rot = [e.distortion for e, r in list(zip(elements, rev))[1:] if not r]
+    dist = [e.distortion for e in elements]
+    if near_symmetry_coset(rev, dist):
+        rot, mir = _by_orientation(rev, dist)
         diag = replace(diag, near_symmetry_coset=[round(d, 4) for d in mir])
         warnings.warn(f"the {len(mir)} orientation-reversing elements are near-symmetries riding on "
                       f"near-exact rotations (median distortion {np.median(mir):.3f} against "
                       f"{np.median(rot):.3f} EPS_KLC): kept, but the exact group may be the "
-                      f"{n_rot} rotations alone (diagnostics.group.near_symmetry_coset)", stacklevel=2)
+                      f"{len(rot) + 1} rotations alone (diagnostics.group.near_symmetry_coset)",
+                      stacklevel=2)
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
     table, rev = torch.as_tensor(table, dtype=torch.long), torch.as_tensor(rev, dtype=torch.bool)
-    order = canonical_order(table, rev, [e.distortion for e in elements])
+    order = canonical_order(table, rev, dist)
     perm = torch.tensor(order)
     inv_perm = torch.empty_like(perm)
     inv_perm[perm] = torch.arange(len(perm))
