@@ -20,17 +20,23 @@ def to_numpy(x, dtype=None) -> np.ndarray:
     return x.astype(dtype, copy=False) if dtype is not None else x
 
 
+def _rows_of_three(x, name: str, shape: str, empty: str) -> np.ndarray:
+    """``x`` as a numpy array of shape [N, 3] with N >= 1; ``shape`` and ``empty`` end the errors."""
+    a = to_numpy(x)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name} must be {shape}, got {list(a.shape)}")
+    if a.shape[0] == 0:
+        raise ValueError(f"{name} is empty {empty}")
+    return a
+
+
 def check_verts(verts, name: str = "verts") -> np.ndarray:
     """Validate vertex positions: [V, 3] finite floats, V >= 1.
 
     Returns:
         [V, 3] float64 numpy array.
     """
-    v = to_numpy(verts)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise ValueError(f"{name} must be [V, 3], got {list(v.shape)}")
-    if v.shape[0] == 0:
-        raise ValueError(f"{name} is empty (no vertices)")
+    v = _rows_of_three(verts, name, "[V, 3]", "(no vertices)")
     if not np.issubdtype(v.dtype, np.number):
         raise ValueError(f"{name} must be numeric, got {v.dtype}")
     v = v.astype(np.float64, copy=False)
@@ -47,11 +53,8 @@ def check_faces(faces, n_verts: int, name: str = "faces") -> np.ndarray:
     Returns:
         [F, 3] int64 numpy array.
     """
-    f = to_numpy(faces)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise ValueError(f"{name} must be [F, 3] (triangles), got {list(f.shape)}")
-    if f.shape[0] == 0:
-        raise ValueError(f"{name} is empty (no triangles); pass faces=None for a point cloud")
+    f = _rows_of_three(faces, name, "[F, 3] (triangles)",
+                       "(no triangles); pass faces=None for a point cloud")
     if not np.issubdtype(f.dtype, np.integer):
         if np.issubdtype(f.dtype, np.floating) and np.all(np.mod(f, 1) == 0):
             f = f.astype(np.int64)
