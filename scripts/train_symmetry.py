@@ -1,4 +1,4 @@
-"""Does symmetry make a shape-matching network better?  The field's protocol, four runs per setting.
+"""Does symmetry make a shape-matching network better?  The field's protocol, five runs per setting.
 
     python scripts/train_symmetry.py --dataset FAUST                      # all train shapes, 4 runs
     python scripts/train_symmetry.py --dataset TOSCA_Isometric --regime quarter
@@ -9,7 +9,8 @@ gradient features) on WKS (default) or on xyz with a random rotation per shape a
 (``--input xyz``); the differentiable functional-map layer with the resolvent Laplacian mask
 (:func:`symtorch.fmap_solve.regularized_fmap`, GeomFmaps / ULRSSM) in the first ``--k`` eigenpairs;
 supervised by the ground-truth functional map (GeomFmaps, Donati et al. 2020). One pair per step,
-Adam, the same seed and the same number of steps for every run.
+Adam with the learning rate decayed to 0 over the run (``--schedule cosine``, the default; ``constant``
+keeps it), the same seed and the same number of steps for every run.
 
 Data (remeshed independently per shape, as the field trains): FAUST and TOSCA_Isometric at 5k
 vertices (``../shared/data/bcicp_5k``; TOSCA pairs within a class), SCAPE remeshed to 5k by
@@ -348,8 +349,8 @@ def main() -> None:
     ap.add_argument("--width", type=int, default=64)
     ap.add_argument("--out", type=int, default=64, help="feature size")
     ap.add_argument("--lr", type=float, default=1e-3)
-    ap.add_argument("--schedule", choices=["constant", "cosine"], default="constant",
-                    help="learning rate: constant, or cosine decay to 0 over --steps")
+    ap.add_argument("--schedule", choices=["constant", "cosine"], default="cosine",
+                    help="learning rate: cosine decay to 0 over --steps (default), or constant")
     ap.add_argument("--w-equiv", type=float, default=1.0)
     ap.add_argument("--w-orient", type=float, default=1.0)
     ap.add_argument("--max-distortion", type=float, default=None,

@@ -22,9 +22,10 @@ PIPELINE = "symmetrize+tta"
 
 def by_seed(rows: dict, pipeline: str) -> None:
     """One line per dataset, regime and seed, then per column the mean over the seeds that have it
-    and the baseline: error (its ratio to the baseline's mean over the same seeds, mean flipped
+    and the baseline (``+resolve``: the baseline's maps after ``resolve_symmetry_p2p``, the
+    post-process any user can bolt on): error (its ratio to the baseline's mean over the same seeds, mean flipped
     share)."""
-    cols = ("baseline", "baseline+tta", "baseline+stta", "augment", "augment+tta", "augment+stta",
+    cols = ("baseline", "baseline+resolve", "baseline+tta", "baseline+stta", "augment", "augment+tta", "augment+stta",
             "symmetrize", "symmetrize+tta")
     cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
@@ -61,8 +62,8 @@ def main() -> None:
     ap.add_argument("--by-seed", action="store_true",
                     help="the runs and post-processes per seed, and their means")
     ap.add_argument("--steps", type=int, default=300, help="the rows of runs this long (default 300)")
-    ap.add_argument("--schedule", choices=["constant", "cosine"], default="constant",
-                    help="the rows of runs with this learning-rate schedule (default constant)")
+    ap.add_argument("--schedule", choices=["constant", "cosine"], default="cosine",
+                    help="the rows of runs with this learning-rate schedule (default cosine)")
     args = ap.parse_args()
     rows = {}
     for path in args.rows:
