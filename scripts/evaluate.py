@@ -1,6 +1,7 @@
 """Evaluate reflection detection on a whole benchmark (ALGORITHM §6) and print a table.
 
-    python scripts/evaluate.py --dataset SCAPE [--limit N] [--method symtorch|pyfm] [--k-refine K] [--out results.csv]
+    python scripts/evaluate.py --dataset SCAPE [--limit N] [--method symtorch|pyfm ...] [--k-refine K] [--out results.csv]
+    python scripts/evaluate.py --dataset FAUST --method symtorch pyfm     # per-mesh table, side by side
     python scripts/evaluate.py --dataset SCAPE --point-cloud [--subsample 5000 --seed 0] [--cloud-min-cos none]
 
 Per mesh: name, V, kind of the scored symmetry, correspondence rate (share of ground-truth points
@@ -132,7 +133,9 @@ def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: i
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Evaluate reflection detection on a benchmark.")
     parser.add_argument("--dataset", required=True, choices=list(DATASETS))
-    parser.add_argument("--method", default="symtorch", choices=["symtorch", "pyfm"])
+    parser.add_argument("--method", nargs="+", default=["symtorch"], choices=["symtorch", "pyfm"],
+                        help="one or more methods; with several, each mesh is run by each and a "
+                             "per-mesh table puts them side by side")
     parser.add_argument("--mode", default="auto", choices=["auto", "reflection", "group"],
                         help="detect_symmetries mode (symtorch method)")
     parser.add_argument("--k-refine", type=int, default=None,
@@ -167,29 +170,36 @@ def main(argv=None) -> int:
     cloud = (f", point cloud of {args.subsample} random vertices (seed {args.seed})" if args.subsample
              else ", point cloud of the vertices" if args.point_cloud else "")
     cloud += "".join(f", {k}={v}" for k, v in cloud_knobs.items())
-    print(f"{args.dataset}: {len(meshes)} meshes, method={args.method}{cloud}", file=sys.stderr)
-    header = f"{'mesh':>12s} {'V':>6s} {'kind':>10s} {'n_gt':>5s} {'rate':>6s} " \
+    methods = list(dict.fromkeys(args.method))
+    print(f"{args.dataset}: {len(meshes)} meshes, method={','.join(methods)}{cloud}", file=sys.stderr)
+    header = f"{'mesh':>12s} {'method':>8s} {'V':>6s} {'kind':>10s} {'n_gt':>5s} {'rate':>6s} " \
              f"{'err e-3':>8s} {'time s':>7s} {'cpu s':>7s} {'eval s':>7s}"
     print(header)
     rows = []
     for name, path in meshes:
-        row = evaluate_mesh(args.dataset, name, path, args.method, args.max_pairs, args.mode,
-                            args.k_refine, args.point_cloud, args.subsample, args.seed, cloud_knobs)
-        if row is None:
-            continue
-        rows.append(row)
-        print(f"{row['name']:>12s} {row['V']:>6d} {row['kind']:>10s} {row['n_gt']:>5d} "
-              f"{row['rate']:>6.3f} {row['nerr'] * 1e3:>8.1f} {row['time']:>7.2f} "
-              f"{row['cpu_time']:>7.2f} {row['eval_time']:>7.2f}", flush=True)
+        for method in methods:
+            row = evaluate_mesh(args.dataset, name, path, method, args.max_pairs, args.mode,
+                                args.k_refine, args.point_cloud, args.subsample, args.seed, cloud_knobs)
+            if row is None:
+                break
+            row = dict(method=method, **row)
+            rows.append(row)
+            print(f"{row['name']:>12s} {method:>8s} {row['V']:>6d} {row['kind']:>10s} {row['n_gt']:>5d} "
+                  f"{row['rate']:>6.3f} {row['nerr'] * 1e3:>8.1f} {row['time']:>7.2f} "
+                  f"{row['cpu_time']:>7.2f} {row['eval_time']:>7.2f}", flush=True)
     if not rows:
         print("no meshes evaluated")
         return 1
-    rates = [r["rate"] for r in rows]
-    print(f"\n{args.dataset} / {args.method}: {len(rows)} meshes | "
-          f"mean correspondence rate {100 * np.nanmean(rates):.1f} % | "
-          f"mesh rate (>75 %) {100 * mesh_rate(rates):.1f} % | "
-          f"mean normalised error {1e3 * np.mean([r['nerr'] for r in rows]):.1f} e-3 | "
-          f"median time {statistics.median(r['time'] for r in rows):.2f} s")
+    if len(methods) > 1:
+        print_side_by_side(rows, methods)
+    for method in methods:
+        mine = [r for r in rows if r["method"] == method]
+        rates = [r["rate"] for r in mine]
+        print(f"\n{args.dataset} / {method}: {len(mine)} meshes | "
+              f"mean correspondence rate {100 * np.nanmean(rates):.1f} % | "
+              f"mesh rate (>75 %) {100 * mesh_rate(rates):.1f} % | "
+              f"mean normalised error {1e3 * np.mean([r['nerr'] for r in mine]):.1f} e-3 | "
+              f"median time {statistics.median(r['time'] for r in mine):.2f} s")
     if args.out:
         with open(args.out, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
@@ -197,6 +207,27 @@ def main(argv=None) -> int:
             writer.writerows(rows)
         print(f"wrote {args.out}", file=sys.stderr)
     return 0
+
+
+def print_side_by_side(rows: list[dict], methods: list[str]) -> None:
+    """Markdown: one line per mesh, each method's KLC10 rate, error (x1e-3) and seconds; a mesh
+    whose rate is at most 75 % (a wrong map) is marked in bold."""
+    by_mesh: dict[str, dict[str, dict]] = {}
+    for r in rows:
+        by_mesh.setdefault(r["name"], {})[r["method"]] = r
+    print("\n| mesh | " + " | ".join(f"{m} rate | {m} error ×1e-3 | {m} s" for m in methods) + " |")
+    print("|---|" + "---:|---:|---:|" * len(methods))
+    for name, got in by_mesh.items():
+        cells = []
+        for m in methods:
+            r = got.get(m)
+            if r is None:
+                cells += ["–"] * 3
+                continue
+            rate = f"{100 * r['rate']:.1f} %"
+            cells += [f"**{rate}**" if r["rate"] <= 0.75 else rate, f"{1e3 * r['nerr']:.1f}",
+                      f"{r['time']:.2f}"]
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

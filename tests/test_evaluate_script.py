@@ -33,3 +33,15 @@ def test_lift_to_mesh_sends_each_vertex_where_its_nearest_point_goes():
     odd = np.arange(1, 1000, 2)
     nearest = keep[np.argmin(((verts[odd, None] - verts[keep][None]) ** 2).sum(-1), 1)]
     assert np.array_equal(lifted[odd], (nearest + 500) % 1000)
+
+
+def test_side_by_side_table_has_one_line_per_mesh_and_marks_wrong_maps(capsys):
+    ev = _load_script()
+    rows = [dict(method="symtorch", name="a", rate=0.99, nerr=0.0213, time=1.0),
+            dict(method="pyfm", name="a", rate=0.60, nerr=0.2504, time=4.0),
+            dict(method="symtorch", name="b", rate=0.97, nerr=0.0300, time=1.5)]
+    ev.print_side_by_side(rows, ["symtorch", "pyfm"])
+    lines = [l for l in capsys.readouterr().out.splitlines() if l.startswith("| ")]
+    assert lines[0].startswith("| mesh | symtorch rate") and "pyfm s |" in lines[0]
+    assert lines[1] == "| a | 99.0 % | 21.3 | 1.00 | **60.0 %** | 250.4 | 4.00 |"
+    assert lines[2] == "| b | 97.0 % | 30.0 | 1.50 | – | – | – |"
