@@ -10,7 +10,8 @@ whole finite group, or a continuous symmetry. :func:`detect_symmetries` chooses:
    up); its result is kept when it is a continuous symmetry or a group of order > 2.
 3. **reflection** otherwise (and after a group path that found at most a mirror).
 4. **second opinion**: where the spectrum is simple but the reflection path verified no
-   reflection (a lone half turn, a box whose heat-kernel extrema are too few to pair), or found at
+   reflection (a lone half turn), or its reflection came from the functional-map candidate alone
+   (a box whose heat-kernel extrema are too few to pair), or it found at
    least three equally consistent involutions of its extrema (a C2v or D2h shape: all its
    irreducible representations are 1-D, so its spectrum is simple), the group path runs too,
    asked for a group larger than the reflection path's.
@@ -148,7 +149,10 @@ def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, 
             return grouped
     reflected = detect_reflection(verts, faces, spectrum, k=cfg.k, k_refine=cfg.k_refine,
                                   config=cfg.reflection, solver=solver, timer=timer)
+    # no reflection, or one from the functional-map candidate alone (the extrema paired nothing:
+    # too few of them, as on a box), or several near-equal involutions: the group path too
     if mode == "auto" and grouped is None and (len(reflected.symmetries) == 1
+                                               or not reflected.diagnostics.reflection.n_candidates
                                                or _several_involutions(reflected, cfg.group_tol)):
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")

@@ -67,6 +67,13 @@ class ReflectionConfig:
         verify: the final distortion measure: ``'involution'`` (``involution_distortion``, read off
             the samples' own distance fields) or ``'images'`` (``isometry_score``, one heat solve
             per sample image).
+        fmap_candidate: also solve the orientation-reversing functional map of the shape onto
+            itself (:mod:`.fmap_candidate`: descriptors, Laplacian and descriptor commutativity, the
+            orientation term; no point pairs) and refine and verify it as one more finalist of the
+            final stage; where the extrema give no candidate, it is the only one.
+        fmap_k: its basis size (snapped to a band end).
+        fmap_ratio: it is refined to the end only where, grown to ``k_select``, it reverses the
+            orientation clearly and distorts by at most this factor times the selection's winner.
     """
 
     n_extrema: int = 12
@@ -95,6 +102,9 @@ class ReflectionConfig:
     w_guide: float = 1.0
     second_opinion: bool = True
     verify: str = "involution"
+    fmap_candidate: bool = True
+    fmap_k: int = 20
+    fmap_ratio: float = 1.5
 
     def __post_init__(self):
         if self.verify not in ("involution", "images"):

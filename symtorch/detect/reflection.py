@@ -62,6 +62,7 @@ from ..spectrum import Spectrum, band_boundary, solved_bands
 from ..units import EPS_KLC
 from .confidence import reflection_confidence
 from .config import ReflectionConfig
+from .fmap_candidate import reversing_fmap_candidate
 from .constraints import descriptor_coefficients, disk_coefficients
 from .involutions import heat_extrema, involution_candidates
 from .result import Checks, Diagnostics, ReflectionDiagnostics, Symmetry, SymmetryResult, Trial
@@ -69,7 +70,8 @@ from .verification import (descriptor_gap, involution_distortion, involution_err
                            orientation_vote, vertex_normals)
 
 __all__ = ["detect_reflection", "reflection_basis", "find_candidates", "candidate_fmaps",
-           "select_candidate", "refine_and_verify", "final_selection", "final_cost", "second_opinion",
+           "select_candidate", "refine_and_verify", "fmap_finalist", "final_selection", "final_cost",
+           "second_opinion",
            "map_agreement", "orientation_guide", "reflection_group", "Basis",
            "Candidates", "SampleSet", "Selection", "Refined"]
 
@@ -177,7 +179,9 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
         chosen = select_candidate(C0, cands, samples, basis, cfg, guided=False)
         lap("select")
         found = refine_and_verify(chosen.fmap, samples, cands.desc, basis, cfg, lap)
-        pick, found, finalists = final_selection(chosen, found, samples, cands.desc, basis, cfg, lap)
+        extra = fmap_finalist(verts_unit, faces, spectrum, cands.desc, basis, cfg, lap, samples, chosen)
+        pick, found, finalists = final_selection(chosen, found, samples, cands.desc, basis, cfg, lap,
+                                                 extra)
         diag = replace(diag, trials=chosen.trials, chosen=pick, finalists=finalists,
                        checks=found.checks)
         other = None  # the selection the reported map did not come from: its matrix at k_select
@@ -191,12 +195,24 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
             diag = replace(diag, guided_trials=chosen.trials, guided_chosen=chosen.chosen,
                            guided=found.checks)
         elif found.checks.accepted and cfg.second_opinion and cfg.w_guide > 0:
-            second = second_opinion(C0, cands, pick[0], samples, basis, cfg)
+            # the extrema candidates up to the reported one (up to the selection's own choice
+            # where the functional-map candidate was reported)
+            last = chosen.chosen[0] if pick[0] == FMAP_KEY else pick[0]
+            second = second_opinion(C0, cands, last, samples, basis, cfg)
             lap("second_opinion")
             other = second.fmap
             diag = replace(diag, second_chosen=second.chosen)
         if found.checks.accepted and other is not None:
             diag = replace(diag, agreement=map_agreement(samples, found.p2p, other))
+        if found.checks.accepted:
+            symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
+                                       confidence=reflection_confidence(diag)))
+    elif cfg.fmap_candidate:  # no extrema pairs: the functional-map candidate alone
+        samples = SampleSet(verts_unit, faces, spectrum, solver, cfg)
+        desc = descriptors(spectrum.evals, spectrum.evecs)
+        (key, C), = fmap_finalist(verts_unit, faces, spectrum, desc, basis, cfg, lap)
+        found = refine_and_verify(C, samples, desc, basis, cfg, lap)
+        diag = replace(diag, chosen=key, finalists=[key], checks=found.checks)
         if found.checks.accepted:
             symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
                                        confidence=reflection_confidence(diag)))
@@ -390,8 +406,41 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
     return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok, inv))
 
 
+#: The (candidate, start) key of the functional-map candidate: it has no extrema permutation.
+FMAP_KEY = -1
+
+
+def fmap_finalist(verts_unit: Tensor, faces, spectrum: Spectrum, desc: Tensor, basis: Basis,
+                  cfg: ReflectionConfig, lap, samples: SampleSet | None = None,
+                  chosen: Selection | None = None) -> list[tuple[tuple[int, int], Tensor]]:
+    """Stage 4, **fmap**: the orientation-reversing functional map of the shape onto itself
+    (:func:`.fmap_candidate.reversing_fmap_candidate` on the descriptors ``desc``) as a finalist
+    ``((FMAP_KEY, k), matrix)``; none when ``cfg.fmap_candidate`` is off.
+
+    With the selection (``samples``, ``chosen``) it is screened as the extrema candidates are:
+    grown to ``k_select`` and measured there, it is a finalist only when it reverses the
+    orientation clearly and its distortion is within ``cfg.fmap_ratio`` of the selection's
+    winner (the refinement to the end is the costly part). Without one it is returned unscreened.
+    """
+    if not cfg.fmap_candidate:
+        return []
+    k = band_boundary(basis.bands, min(cfg.fmap_k, basis.k_refine))
+    C = reversing_fmap_candidate(verts_unit, torch.as_tensor(faces), spectrum.evecs, spectrum.evals,
+                                 spectrum.mass, desc, basis.bands, k)
+    if samples is not None and chosen is not None:
+        # measured at k_select; refined from its own basis (measured better than from k_select)
+        _, _, distortion = _upsample_and_measure(C, samples, basis, cfg, None)
+        best = next((d for key, d, _ in chosen.measured if key == chosen.chosen), math.inf)
+        if not distortion <= cfg.fmap_ratio * best:  # inf (not clearly reversing) or too distorted
+            lap("fmap")
+            return []
+    lap("fmap")
+    return [((FMAP_KEY, k), C)]
+
+
 def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc: Tensor, basis: Basis,
-                    cfg: ReflectionConfig, lap) -> tuple[tuple[int, int], Refined, list[tuple[int, int]]]:
+                    cfg: ReflectionConfig, lap, extra: list[tuple[tuple[int, int], Tensor]] = ()
+                    ) -> tuple[tuple[int, int], Refined, list[tuple[int, int]]]:
     """Stage 4, **final**: the selection's near-ties refined and verified too; the best verified one wins.
 
     ``found`` is the chosen candidate refined (stage 4). Every other candidate whose selection
@@ -400,10 +449,13 @@ def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc:
     (1 + vote)`` is reported (the final checks measure twice the samples, on the dense map in the
     final basis). Where none verifies, the chosen one stays (and the guided selection follows).
 
+    ``extra`` finalists (the functional-map candidate, :func:`fmap_finalist`) are refined and
+    verified the same way, whatever their selection distortion.
+
     Returns:
         ((candidate, start) reported, its Refined, the (candidate, start) of every finalist).
     """
-    finalists = chosen.finalists(cfg.final_ratio)
+    finalists = chosen.finalists(cfg.final_ratio) + list(extra)
     if len(finalists) < 2:
         return chosen.chosen, found, [chosen.chosen]
 
