@@ -103,7 +103,9 @@ def diagnostics_from_json(d: dict) -> ReflectionDiagnostics:
 
 
 def auroc(pos: np.ndarray, neg: np.ndarray) -> float:
-    """P(a random positive scores above a random negative), ties half; NaN without both classes."""
+    """P(a random positive scores above a random negative), ties half, over the values that are not
+    NaN (a signal some maps do not have); NaN without both classes."""
+    pos, neg = pos[~np.isnan(pos)], neg[~np.isnan(neg)]
     if len(pos) == 0 or len(neg) == 0:
         return float("nan")
     diff = pos[:, None] - neg[None, :]

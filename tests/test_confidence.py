@@ -51,6 +51,16 @@ def test_signals_are_oriented_and_finite_where_measured():
     assert math.isnan(confidence_signals(_diag(None))["agree1"])
 
 
+def test_signals_of_a_map_from_the_functional_map_candidate():
+    """That map had no trial in the extrema selection: its selection signals are NaN, the rest as
+    for any map."""
+    d = ReflectionDiagnostics(**{**_diag((0.8, 0.9)).__dict__, "chosen": (-1, 20)})
+    s = confidence_signals(d)
+    assert all(math.isnan(s[k]) for k in ("sel_distortion", "sel_vote", "margin", "ratio"))
+    assert s["n_compared"] == -2.0 and s["agree1"] == 0.8 and s["reversal"] == 0.9
+    assert reflection_confidence(d) == 0.8
+
+
 @pytest.fixture(scope="module")
 def mirror():
     verts, faces, mirror = mirror_mesh(subdivisions=3)

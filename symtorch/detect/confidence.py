@@ -71,14 +71,18 @@ def confidence_signals(d: ReflectionDiagnostics) -> dict[str, float]:
     the runner-up of the selection was (10 and 100 where no other candidate was measured);
     ``n_compared``: minus the number of other candidates measured; ``sel_distortion`` and
     ``sel_vote``: the chosen candidate's trial; ``cand_ratio``: second over first extrema-permutation
-    consistency score; ``guided``: -1 where the guided selection supplied the map; ``agree1``,
+    consistency score (the selection's four: NaN where the functional-map candidate supplied the
+    map, which had no trial); ``guided``: -1 where the guided selection supplied the map; ``agree1``,
     ``agree2``: the two selections' agreement within one and two KLC radii; ``same_choice``: 1 where
     both chose the same candidate (NaN where no second selection ran).
     """
     checks, trials, chosen = _reported(d)
     starts = list(d.k0)
-    i = chosen[0] * len(starts) + starts.index(chosen[1])
-    best = trials[i].distortion
+    if chosen[0] >= 0:
+        i = chosen[0] * len(starts) + starts.index(chosen[1])
+        best, vote = trials[i].distortion, trials[i].vote
+    else:  # the functional-map candidate: no trial of the extrema selection
+        i, best, vote = None, math.nan, math.nan
     others = sorted(t.distortion for j, t in enumerate(trials)
                     if j // len(starts) != chosen[0] and math.isfinite(t.distortion))
     runner = others[0] if others else math.inf
@@ -95,7 +99,7 @@ def confidence_signals(d: ReflectionDiagnostics) -> dict[str, float]:
         "ratio": min(runner / max(best, 1e-6), 100.0),
         "n_compared": -float(len(others)),
         "sel_distortion": -best,
-        "sel_vote": -trials[i].vote,
+        "sel_vote": -vote,
         "cand_ratio": min(sc[1] / max(sc[0], 1e-6), 100.0) if len(sc) > 1 else 100.0,
         "guided": -float(d.guided is not None),
         "agree1": d.agreement[0] if d.agreement is not None else math.nan,
