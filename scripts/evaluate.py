@@ -92,9 +92,12 @@ def lift_to_mesh(p2p_sub: np.ndarray, keep: np.ndarray, verts: np.ndarray) -> np
     return keep[p2p_sub[nearest_vertices(verts[keep], verts)]]
 
 
-def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: int,
+def evaluate_mesh(dataset: str, name: str, path: Path, methods: list[str], max_pairs: int,
                   mode: str = "auto", k_refine: int | None = None, point_cloud: bool = False,
-                  subsample: int | None = None, seed: int = 0, cloud_knobs: dict | None = None) -> dict | None:
+                  subsample: int | None = None, seed: int = 0,
+                  cloud_knobs: dict | None = None) -> list[dict] | None:
+    """One row per method on one mesh (the mesh, its ground truth and the scoring solver are read
+    and built once); None where the mesh has no ground truth."""
     try:
         gt = load_ground_truth(dataset, name)
     except FileNotFoundError:
@@ -102,32 +105,36 @@ def evaluate_mesh(dataset: str, name: str, path: Path, method: str, max_pairs: i
         return None
     verts, faces = load_mesh(path)
     keep = point_subset(len(verts), subsample, seed) if point_cloud else np.arange(len(verts))
-    t0, c0 = time.perf_counter(), time.process_time()
-    if point_cloud:
-        if method != "symtorch":
-            raise SystemExit("--point-cloud needs --method symtorch")
-        p2p, kind = run_symtorch(verts[keep], None, mode, k_refine, **(cloud_knobs or {}))
-    else:
-        p2p, kind = (run_symtorch(verts, faces, mode, k_refine) if method == "symtorch"
-                     else run_pyfm(verts, faces))
-    t_method, c_method = time.perf_counter() - t0, time.process_time() - c0
-    if len(keep) < len(verts):
-        p2p = lift_to_mesh(p2p, keep, verts)
+    solver = None
+    rows = []
+    for method in methods:
+        t0, c0 = time.perf_counter(), time.process_time()
+        if point_cloud:
+            if method != "symtorch":
+                raise SystemExit("--point-cloud needs --method symtorch")
+            p2p, kind = run_symtorch(verts[keep], None, mode, k_refine, **(cloud_knobs or {}))
+        else:
+            p2p, kind = (run_symtorch(verts, faces, mode, k_refine) if method == "symtorch"
+                         else run_pyfm(verts, faces))
+        t_method, c_method = time.perf_counter() - t0, time.process_time() - c0
+        if len(keep) < len(verts):
+            p2p = lift_to_mesh(p2p, keep, verts)
 
-    t0 = time.perf_counter()
-    solver = GeodesicSolver(verts, faces)  # original units: errors and area agree
-    if gt.kind == "pairs":
-        pairs = gt.pairs
-        if max_pairs:
-            pairs = evenly_spaced(pairs, max_pairs)
-        errors = geodesic_errors(solver, p2p, pairs)
-    else:
-        errors = orbit_errors(solver, p2p, gt.orbits, identity=(kind in ("identity", "none")))
-    area = solver.area
-    row = dict(name=name, V=len(keep), kind=kind, n_gt=len(errors),
-               rate=float(klc_rates(errors, area)), nerr=normalized_error(errors, area),
-               time=t_method, cpu_time=c_method, eval_time=time.perf_counter() - t0)
-    return row
+        t0 = time.perf_counter()
+        if solver is None:
+            solver = GeodesicSolver(verts, faces)  # original units: errors and area agree
+        if gt.kind == "pairs":
+            pairs = gt.pairs
+            if max_pairs:
+                pairs = evenly_spaced(pairs, max_pairs)
+            errors = geodesic_errors(solver, p2p, pairs)
+        else:
+            errors = orbit_errors(solver, p2p, gt.orbits, identity=(kind in ("identity", "none")))
+        area = solver.area
+        rows.append(dict(method=method, name=name, V=len(keep), kind=kind, n_gt=len(errors),
+                         rate=float(klc_rates(errors, area)), nerr=normalized_error(errors, area),
+                         time=t_method, cpu_time=c_method, eval_time=time.perf_counter() - t0))
+    return rows
 
 
 def main(argv=None) -> int:
@@ -177,15 +184,12 @@ def main(argv=None) -> int:
     print(header)
     rows = []
     for name, path in meshes:
-        for method in methods:
-            row = evaluate_mesh(args.dataset, name, path, method, args.max_pairs, args.mode,
-                                args.k_refine, args.point_cloud, args.subsample, args.seed, cloud_knobs)
-            if row is None:
-                break
-            row = dict(method=method, **row)
+        for row in evaluate_mesh(args.dataset, name, path, methods, args.max_pairs, args.mode,
+                                 args.k_refine, args.point_cloud, args.subsample, args.seed,
+                                 cloud_knobs) or []:
             rows.append(row)
-            print(f"{row['name']:>12s} {method:>8s} {row['V']:>6d} {row['kind']:>10s} {row['n_gt']:>5d} "
-                  f"{row['rate']:>6.3f} {row['nerr'] * 1e3:>8.1f} {row['time']:>7.2f} "
+            print(f"{row['name']:>12s} {row['method']:>8s} {row['V']:>6d} {row['kind']:>10s} "
+                  f"{row['n_gt']:>5d} {row['rate']:>6.3f} {row['nerr'] * 1e3:>8.1f} {row['time']:>7.2f} "
                   f"{row['cpu_time']:>7.2f} {row['eval_time']:>7.2f}", flush=True)
     if not rows:
         print("no meshes evaluated")

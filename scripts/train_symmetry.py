@@ -1,6 +1,6 @@
 """Does symmetry make a shape-matching network better?  The field's protocol, five runs per setting.
 
-    python scripts/train_symmetry.py --dataset FAUST                      # all train shapes, 4 runs
+    python scripts/train_symmetry.py --dataset FAUST                      # all train shapes, 5 runs
     python scripts/train_symmetry.py --dataset TOSCA_Isometric --regime quarter
     python scripts/build_scape_r.py && python scripts/train_symmetry.py --dataset SCAPE_r
 

@@ -23,10 +23,10 @@ PIPELINE = "symmetrize+tta"
 def by_seed(rows: dict, pipeline: str) -> None:
     """One line per dataset, regime and seed, then per column the mean over the seeds that have it
     and the baseline (``+resolve``: the baseline's maps after ``resolve_symmetry_p2p``, the
-    post-process any user can bolt on): error (its ratio to the baseline's mean over the same seeds, mean flipped
-    share)."""
-    cols = ("baseline", "baseline+resolve", "baseline+tta", "baseline+stta", "augment", "augment+tta", "augment+stta",
-            "symmetrize", "symmetrize+tta")
+    post-process any user can bolt on): error (its ratio to the baseline's mean over the same seeds,
+    mean flipped share)."""
+    cols = ("baseline", "baseline+resolve", "baseline+tta", "baseline+stta", "augment", "augment+tta",
+            "augment+stta", "symmetrize", "symmetrize+tta")
     cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
     print("|---|---:|" + "---:|" * len(cols))

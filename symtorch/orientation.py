@@ -26,7 +26,7 @@ from torch import Tensor
 _CHUNK = 2 ** 24  # elements of the largest per-face intermediate of orientation_operators
 
 __all__ = ["FaceGeometry", "face_geometry", "vertex_normals", "face_gradients", "faces_to_vertices",
-           "orientation_operators", "orientation_residual", "face_orientation_votes",
+           "unit_columns", "orientation_operators", "orientation_residual", "face_orientation_votes",
            "orientation_agreement", "resolve_symmetry",
            "resolve_symmetry_p2p", "FmapResolution", "P2PResolution"]
 
@@ -146,6 +146,13 @@ def _check_basis(verts: Tensor, evecs: Tensor, mass: Tensor, fields: Tensor) -> 
                          f"{verts.dtype}, {evecs.dtype}, {mass.dtype}, {fields.dtype}")
 
 
+def unit_columns(fields: Tensor, mass: Tensor) -> Tensor:
+    """[V, D] descriptors, each column scaled to unit mass-weighted L2 norm (an all-zero column
+    stays zero, not NaN)."""
+    return fields / (mass[:, None] * fields.square()).sum(0, keepdim=True).sqrt().clamp_min(
+        torch.finfo(fields.dtype).tiny)
+
+
 def orientation_operators(verts: Tensor, faces: Tensor, evecs: Tensor, mass: Tensor, fields: Tensor,
                           normalize: bool = True) -> Tensor:
     """Orientation operators of descriptors in a reduced basis (Ren et al. 2018).
@@ -188,9 +195,8 @@ def orientation_operators(verts: Tensor, faces: Tensor, evecs: Tensor, mass: Ten
     faces = _check_mesh(verts, faces)
     _check_basis(verts, evecs, mass, fields)
     f = fields[:, None] if fields.ndim == 1 else fields
-    if normalize:  # tiny: an all-zero column gives a zero operator, not a NaN one
-        f = f / (mass[:, None] * f.square()).sum(0, keepdim=True).sqrt().clamp_min(
-            torch.finfo(f.dtype).tiny)
+    if normalize:
+        f = unit_columns(f, mass)
     geo = face_geometry(verts, faces)
     rot = torch.cross(geo.normals[:, None, :].expand(-1, f.shape[1], 3),
                       face_gradients(verts, faces, f, geo), dim=-1)  # [F, D, 3] n x grad f

@@ -46,7 +46,8 @@ def project_structure(C: Tensor, bands: list[range] | None, involution: bool) ->
     return block_project(C, bands, fixed_first=False)
 
 
-def _bands_upto(bands: list[range], K: int) -> list[range]:
+def bands_upto(bands: list[range], K: int) -> list[range]:
+    """The bands that end at or before ``K``; ``K`` must be a band end."""
     out = [b for b in bands if b.stop <= K]
     if not out or out[-1].stop != K:
         raise ValueError(f"K={K} cuts a band")
@@ -107,6 +108,6 @@ def zoomout_symmetry(C0: Tensor, evecs: Tensor, mass: Tensor, bands: list[range]
         # weighted least squares on the samples: (A^T W A)^-1 A^T W B
         AtW = (A * w[:, None]).mT
         Cn = torch.linalg.solve(AtW @ A, AtW @ B)
-        C = project_structure(Cn, _bands_upto(bands, k_next) if block else None, involution)
+        C = project_structure(Cn, bands_upto(bands, k_next) if block else None, involution)
         k = k_next
     return C

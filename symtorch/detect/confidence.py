@@ -79,10 +79,10 @@ def confidence_signals(d: ReflectionDiagnostics) -> dict[str, float]:
     checks, trials, chosen = _reported(d)
     starts = list(d.k0)
     if chosen[0] >= 0:
-        i = chosen[0] * len(starts) + starts.index(chosen[1])
-        best, vote = trials[i].distortion, trials[i].vote
+        trial = trials[chosen[0] * len(starts) + starts.index(chosen[1])]
+        best, vote = trial.distortion, trial.vote
     else:  # the functional-map candidate: no trial of the extrema selection
-        i, best, vote = None, math.nan, math.nan
+        best, vote = math.nan, math.nan
     others = sorted(t.distortion for j, t in enumerate(trials)
                     if j // len(starts) != chosen[0] and math.isfinite(t.distortion))
     runner = others[0] if others else math.inf

@@ -25,8 +25,8 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from ..orientation import orientation_operators
-from ..refine import project_structure
+from ..orientation import orientation_operators, unit_columns
+from ..refine import bands_upto, project_structure
 
 __all__ = ["FmapWeights", "fmap_energy_terms", "orientation_reversing_fmap", "reversing_fmap_candidate"]
 
@@ -41,11 +41,6 @@ class FmapWeights(NamedTuple):
     orientation: float = 1.0
 
 
-def _normalise_columns(F: Tensor, mass: Tensor) -> Tensor:
-    """Each column to unit mass-weighted L2 norm (a zero column stays zero)."""
-    return F / (mass[:, None] * F.square()).sum(0, keepdim=True).sqrt().clamp_min(torch.finfo(F.dtype).tiny)
-
-
 def fmap_energy_terms(evecs: Tensor, evals: Tensor, mass: Tensor, fields: Tensor,
                       O: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """The reduced operators of the energy: (A [k, D], Λ [k] in [0, 1], P [D, k, k], O [D, k, k]).
@@ -54,7 +49,7 @@ def fmap_energy_terms(evecs: Tensor, evals: Tensor, mass: Tensor, fields: Tensor
         evecs: [V, k] mass-orthonormal eigenfunctions; evals: [k]; mass: [V] lumped mass.
         fields: [V, D] descriptors; O: [D, k, k] their orientation operators in ``evecs``.
     """
-    F = _normalise_columns(fields, mass)
+    F = unit_columns(fields, mass)  # as orientation_operators normalises them
     MPhi = mass[:, None] * evecs
     A = MPhi.mT @ F                                           # [k, D]
     V, k, D = evecs.shape[0], evecs.shape[1], F.shape[1]
@@ -134,4 +129,4 @@ def reversing_fmap_candidate(verts: Tensor, faces: Tensor, evecs: Tensor, evals:
     O = orientation_operators(verts.to(dtype), faces, E, mass.to(dtype), fields.to(dtype))
     A, lam, P, O = fmap_energy_terms(E, evals[:k].to(dtype), mass.to(dtype), fields.to(dtype), O)
     C = orientation_reversing_fmap(A, lam, P, O, weights)
-    return project_structure(C, [b for b in bands if b.stop <= k], involution=True)
+    return project_structure(C, bands_upto(bands, k), involution=True)

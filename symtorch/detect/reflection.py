@@ -62,8 +62,8 @@ from ..spectrum import Spectrum, band_boundary, solved_bands
 from ..units import EPS_KLC
 from .confidence import reflection_confidence
 from .config import ReflectionConfig
-from .fmap_candidate import reversing_fmap_candidate
 from .constraints import descriptor_coefficients, disk_coefficients
+from .fmap_candidate import reversing_fmap_candidate
 from .involutions import heat_extrema, involution_candidates
 from .result import Checks, Diagnostics, ReflectionDiagnostics, Symmetry, SymmetryResult, Trial
 from .verification import (descriptor_gap, involution_distortion, involution_error, isometry_score,
@@ -121,10 +121,15 @@ class Selection(NamedTuple):
     trials: list[Trial]
     measured: tuple[tuple[tuple[int, int], float, Tensor], ...] = ()
 
+    @property
+    def distortion(self) -> float:
+        """The chosen candidate's selection distortion (inf where it was not measured)."""
+        return next((d for key, d, _ in self.measured if key == self.chosen), math.inf)
+
     def finalists(self, ratio: float) -> list[tuple[tuple[int, int], Tensor]]:
         """The measured candidates within ``ratio`` of the chosen one's distortion, the chosen
         one first, then by distortion."""
-        best = next((d for key, d, _ in self.measured if key == self.chosen), math.inf)
+        best = self.distortion
         near = sorted((d, key, C) for key, d, C in self.measured
                       if key != self.chosen and (math.isinf(ratio) or d <= ratio * best))
         return [(self.chosen, self.fmap)] + [(key, C) for _, key, C in near]
@@ -171,6 +176,7 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
         candidate_scores=[round(float(s), 4) for s in cands.scores[:8]])
     symmetries = [Symmetry(torch.eye(basis.k_refine, dtype=spectrum.evecs.dtype), torch.arange(V),
                            "identity", 1, 1.0)]
+    found = None  # the reported map's refinement, where a candidate was refined
     if cands.perms:
         cands = cands._replace(perms=cands.perms[:cfg.n_candidates])
         C0 = candidate_fmaps(cands, spectrum, basis)
@@ -204,18 +210,14 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
             diag = replace(diag, second_chosen=second.chosen)
         if found.checks.accepted and other is not None:
             diag = replace(diag, agreement=map_agreement(samples, found.p2p, other))
-        if found.checks.accepted:
-            symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
-                                       confidence=reflection_confidence(diag)))
     elif cfg.fmap_candidate:  # no extrema pairs: the functional-map candidate alone
         samples = SampleSet(verts_unit, faces, spectrum, solver, cfg)
-        desc = descriptors(spectrum.evals, spectrum.evecs)
-        (key, C), = fmap_finalist(verts_unit, faces, spectrum, desc, basis, cfg, lap)
-        found = refine_and_verify(C, samples, desc, basis, cfg, lap)
+        (key, C), = fmap_finalist(verts_unit, faces, spectrum, cands.desc, basis, cfg, lap)
+        found = refine_and_verify(C, samples, cands.desc, basis, cfg, lap)
         diag = replace(diag, chosen=key, finalists=[key], checks=found.checks)
-        if found.checks.accepted:
-            symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
-                                       confidence=reflection_confidence(diag)))
+    if found is not None and found.checks.accepted:
+        symmetries.append(Symmetry(found.fmap, found.p2p, "reflection", 2, found.checks.score,
+                                   confidence=reflection_confidence(diag)))
     symmetries, group = reflection_group(symmetries, verts, faces)
     return SymmetryResult(symmetries, spectrum, basis.bands, group=group,
                           timings=dict(timer.timings) if timer is not None else {},
@@ -427,15 +429,13 @@ def fmap_finalist(verts_unit: Tensor, faces, spectrum: Spectrum, desc: Tensor, b
     k = band_boundary(basis.bands, min(cfg.fmap_k, basis.k_refine))
     C = reversing_fmap_candidate(verts_unit, torch.as_tensor(faces), spectrum.evecs, spectrum.evals,
                                  spectrum.mass, desc, basis.bands, k)
+    keep = True
     if samples is not None and chosen is not None:
         # measured at k_select; refined from its own basis (measured better than from k_select)
         _, _, distortion = _upsample_and_measure(C, samples, basis, cfg, None)
-        best = next((d for key, d, _ in chosen.measured if key == chosen.chosen), math.inf)
-        if not distortion <= cfg.fmap_ratio * best:  # inf (not clearly reversing) or too distorted
-            lap("fmap")
-            return []
+        keep = distortion <= cfg.fmap_ratio * chosen.distortion  # inf: not clearly reversing
     lap("fmap")
-    return [((FMAP_KEY, k), C)]
+    return [((FMAP_KEY, k), C)] if keep else []
 
 
 def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc: Tensor, basis: Basis,
@@ -449,8 +449,8 @@ def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc:
     (1 + vote)`` is reported (the final checks measure twice the samples, on the dense map in the
     final basis). Where none verifies, the chosen one stays (and the guided selection follows).
 
-    ``extra`` finalists (the functional-map candidate, :func:`fmap_finalist`) are refined and
-    verified the same way, whatever their selection distortion.
+    ``extra`` finalists (the functional-map candidate, :func:`fmap_finalist`, which screens it
+    itself) are refined and verified the same way.
 
     Returns:
         ((candidate, start) reported, its Refined, the (candidate, start) of every finalist).
