@@ -8,6 +8,7 @@ from symtorch.data import (Compose, ComputeDescriptors, ComputeSpectrum, DetectS
                            NormalizeArea, RandomBandRotation, RandomEigenSigns, RandomSymmetry,
                            SetSymmetries, SymmetryFromCorrespondence, apply_symmetry,
                            bands_from_index, mirror_shape, symmetry_fmaps)
+from symtorch.detect.config import DETECTOR_REVISION
 from symtorch.spectrum import band_index, eigen_bands
 from shapes import mirror_mesh
 
@@ -33,9 +34,10 @@ def test_reprs(monkeypatch):
     assert repr(ComputeSpectrum(30, rel_gap=0.2)) == "ComputeSpectrum(k=30, rel_gap=0.2)"
     assert repr(ComputeDescriptors(8, 0, normalize=False)) == \
         "ComputeDescriptors(n_hks=8, n_wks=0, normalize=False)"
-    assert repr(DetectSymmetries()) == "DetectSymmetries(seed=0, revision=2)"
+    rev = f"revision={DETECTOR_REVISION}"
+    assert repr(DetectSymmetries()) == f"DetectSymmetries(seed=0, {rev})"
     assert repr(DetectSymmetries(k_refine=40, k=20, mode="reflection")) == \
-        "DetectSymmetries(seed=0, revision=2, k=20, k_refine=40, mode='reflection')"
+        f"DetectSymmetries(seed=0, {rev}, k=20, k_refine=40, mode='reflection')"
     p = torch.stack([torch.arange(4), torch.tensor([1, 0, 3, 2])])
     assert repr(SetSymmetries(p)).startswith("SetSymmetries(G=2, V=4, sha1=")
     assert repr(SetSymmetries(p)) == repr(SetSymmetries(p.clone()))
@@ -53,8 +55,8 @@ def test_reprs(monkeypatch):
     assert repr(Compose([])) == "Compose([])"
     # the detector's revision is part of the cache key: a detector whose results differ recomputes
     import symtorch.detect.config as config
-    monkeypatch.setattr(config, "DETECTOR_REVISION", 3)
-    assert repr(DetectSymmetries()) == "DetectSymmetries(seed=0, revision=3)"
+    monkeypatch.setattr(config, "DETECTOR_REVISION", DETECTOR_REVISION + 1)
+    assert repr(DetectSymmetries()) == f"DetectSymmetries(seed=0, revision={DETECTOR_REVISION + 1})"
 
 
 def test_transforms_do_not_mutate_their_input(sym_sample):
@@ -352,6 +354,6 @@ def test_detect_symmetries_on_uncertain(mirror_spectrum_sample, on_uncertain, mi
 def test_detect_symmetries_on_uncertain_is_checked_and_in_the_repr():
     with pytest.raises(ValueError, match="on_uncertain must be one of 'keep', 'flag', 'drop', got 'skip'"):
         DetectSymmetries(on_uncertain="skip")
-    assert repr(DetectSymmetries(on_uncertain="keep")) == "DetectSymmetries(seed=0, revision=2)"
+    assert repr(DetectSymmetries(on_uncertain="keep")) == f"DetectSymmetries(seed=0, revision={DETECTOR_REVISION})"
     assert repr(DetectSymmetries(on_uncertain="drop", min_confidence=0.6)) == \
-        "DetectSymmetries(seed=0, revision=2, on_uncertain='drop', min_confidence=0.6)"
+        f"DetectSymmetries(seed=0, revision={DETECTOR_REVISION}, on_uncertain='drop', min_confidence=0.6)"

@@ -15,8 +15,9 @@ __all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION
 
 #: Raised whenever the default detection's results change (a new stage, a new default): it is part
 #: of the cache key of ``symtorch.data.DetectSymmetries``, so that symmetries cached by an earlier
-#: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties.
-DETECTOR_REVISION = 2
+#: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties;
+#: 3: the orientation-reversing functional-map candidate.
+DETECTOR_REVISION = 3
 
 
 @dataclass(frozen=True)
