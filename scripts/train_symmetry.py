@@ -29,6 +29,13 @@ Runs:
   (:func:`symtorch.tta.symmetrized_features`: ``(f(x)[v] + f(x')[R(v)]) / 2`` with ``x'`` the
   mirror image), in training and at test time; mirror-equivariant by construction, so no
   augmentation; two feature passes per shape and step;
+- ``spectral``: ``symmetrize`` with the average taken in the reduced basis through the
+  reflection's matrix, ``(A + S A') / 2`` (:meth:`Matcher.spectral_average`), in training and at
+  test time: it reads only the reflection's first K frequencies, not its vertex map;
+- ``equivariant``: the baseline's network and loss + ``||A - S A'||^2 / ||A||^2`` per shape
+  (:func:`feature_equivariance`): its features' coefficients against those of its mirror image read
+  through the reflection's matrix. The symmetry is used in training only: at test time the network
+  runs alone, needing no symmetry of the held-out shapes;
 - ``losses``: augment + symmetry equivariance ``||C S_x - S_y C||^2`` (hinged at the ground truth's value);
 - ``full``: + the orientation term (relative residual of ``C O_x = O_y C``, Ren et al. 2018, WKS
   operators; hinged the same way) in training and ``resolve_symmetry_p2p`` on the predicted maps.
@@ -58,6 +65,7 @@ from symtorch.data import (Compose, ComputeDescriptors, ComputeOrientationOperat
                            DetectSymmetries, MeshDataset, NormalizeArea, RandomSymmetry,
                            SymmetryFromCorrespondence,
                            corr_to_fmap)
+from symtorch.data.consensus import template_reflection, with_template_reflection
 from symtorch.data.layouts import class_key
 from symtorch.data.transforms import _haar_orthogonal
 from symtorch.fmap_solve import regularized_fmap
@@ -74,7 +82,7 @@ from symtorch.geodesics import GeodesicSolver
 from symtorch.sampling import farthest_point_sampling
 
 ROOT = Path(__file__).resolve().parent.parent
-RUNS = ("baseline", "augment", "symmetrize", "losses", "full")
+RUNS = ("baseline", "augment", "symmetrize", "spectral", "equivariant", "losses", "full")
 log = logging.getLogger("train_symmetry")
 
 
@@ -177,15 +185,29 @@ class Matcher(torch.nn.Module):
     """DiffusionNet features -> spectral coefficients -> regularised functional map."""
 
     def __init__(self, inp: str, n_wks: int, k: int, k_eig: int, width: int, out: int,
-                 symmetrize: bool = False):
+                 symmetrize: bool = False, spectral: bool = False):
         super().__init__()
-        self.inp, self.k, self.symmetrize = inp, k, symmetrize
+        self.inp, self.k, self.symmetrize, self.spectral = inp, k, symmetrize, spectral
         self.features = DiffusionNetFeatures(n_wks if inp == "wks" else 3, out,
                                              hidden_channels=width, k_eig=k_eig)
 
     def coefs(self, s: dict, generator: torch.Generator | None = None) -> torch.Tensor:
-        """[K, D] the spectral coefficients of the shape's features."""
-        return self.project(self.point_features(s, generator), s)
+        """[K, D] the spectral coefficients of the shape's features (with ``spectral``, averaged
+        over the reflection group in the reduced basis, :meth:`spectral_average`)."""
+        A = self.project(self.point_features(s, generator), s)
+        if self.spectral and reflection_index(s) is not None:
+            A = self.spectral_average(A, self.project(self.point_features(mirror_shape(s), generator), s), s)
+        return A
+
+    def spectral_average(self, A: torch.Tensor, A_m: torch.Tensor, s: dict) -> torch.Tensor:
+        """``(A + S A') / 2``: the coefficients of ``(f(x) + f(x')∘R) / 2`` with the reflection
+        taken as its matrix ``S`` (``sym_fmap``, pull-back) in the first K eigenfunctions instead
+        of its vertex map: the average then depends only on the reflection's low frequencies,
+        where a detected matrix is as good as the ground truth's. ``A`` where there is no reflection."""
+        r = reflection_index(s)
+        if r is None:
+            return A
+        return 0.5 * (A + s["sym_fmap"][r][:self.k, :self.k].to(A) @ A_m)
 
     def project(self, F: torch.Tensor, s: dict) -> torch.Tensor:
         ev = s["evecs"][:, :self.k].float()
@@ -226,18 +248,35 @@ def orient_ops(s: dict, k: int) -> torch.Tensor:
     return s["orient_op"][:, :k, :k].float()
 
 
+def feature_equivariance(model: Matcher, s: dict, A: torch.Tensor, g: torch.Generator, k: int) -> torch.Tensor:
+    """``||A - S A'||^2 / ||A||^2``: how far the network is from mirror-equivariant on this shape.
+
+    ``A [K, D]`` are the spectral coefficients of its features, ``A'`` those of its mirror image
+    ``x'`` and ``S [K, K]`` the reflection's matrix (``sym_fmap``, pull-back: the coefficients of
+    ``f'∘R`` are ``S A'``). An equivariant network has ``f(x)[v] = f(x')[R(v)]``: the term is 0. In
+    the reduced basis the term is smooth in the reflection: an imprecise detected map costs little.
+    0 where the shape has no reflection.
+    """
+    r = reflection_index(s)
+    if r is None:
+        return A.new_zeros(())
+    A_m = model.coefs(mirror_shape(s), g)
+    S = s["sym_fmap"][r][:k, :k].to(A)
+    return (A - S @ A_m).square().sum() / A.square().sum().clamp_min(1e-12)
+
+
 def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Matcher:
     torch.manual_seed(args.seed)
     g = torch.Generator().manual_seed(args.seed)
     model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
-                    symmetrize=run == "symmetrize")
+                    symmetrize=run == "symmetrize", spectral=run == "spectral")
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
     # cosine decay to 0 over the run: the model scored is not one noisy Adam step away from another
     sched = (torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=args.steps)
              if args.schedule == "cosine" else None)
     # a symmetrized network sees a mirror image through its own group average: no augmentation
     augment = (RandomSymmetry(mode="mirror", generator=g)
-               if run not in ("baseline", "symmetrize") else None)
+               if run not in ("baseline", "symmetrize", "spectral", "equivariant") else None)
     t0, k = time.perf_counter(), args.k
     for step in range(args.steps):
         i, j = pairs[int(torch.randint(len(pairs), (1,), generator=g))]
@@ -247,9 +286,13 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
                 x, y = mirror_pair(x, y)
         elif augment is not None:
             x, y = augment(x), augment(y)
-        C = model.fmap(model.coefs(x, g), model.coefs(y, g), x, y)
+        A_x, A_y = model.coefs(x, g), model.coefs(y, g)
+        C = model.fmap(A_x, A_y, x, y)
         C_gt = gt_fmap(x, y, k)
         loss = fmap_loss(C, C_gt)
+        if run == "equivariant":
+            loss = loss + args.w_feq * (feature_equivariance(model, x, A_x, g, k)
+                                        + feature_equivariance(model, y, A_y, g, k))
         # The symmetry terms are hinged at the ground truth's own value: detected symmetries are
         # approximate (and occasionally wrong), so the true map is not exactly equivariant nor
         # exactly orientation-consistent in a truncated basis; only a map *worse* than the truth
@@ -293,6 +336,9 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     feats_m = {i: model.point_features(mirror_shape(data[i])) for i in ids}
     coefs = {i: model.project(feats[i], data[i]) for i in ids}
     mirrored = {i: model.project(feats_m[i], data[i]) for i in ids}
+    if model.spectral:  # the shape and its mirror image, each averaged with the other
+        coefs, mirrored = ({i: model.spectral_average(coefs[i], mirrored[i], data[i]) for i in ids},
+                           {i: model.spectral_average(mirrored[i], coefs[i], data[i]) for i in ids})
     # symmetric averaging, shape by shape, of the features computed above (symmetrized_features)
     symmetrized = {i: model.project(reflection_average(feats[i], feats_m[i], data[i]), data[i])
                    for i in ids}
@@ -335,8 +381,14 @@ def main() -> None:
     ap.add_argument("--regime", choices=["full", "quarter"], default="full")
     ap.add_argument("--runs", nargs="+", choices=RUNS, default=list(RUNS))
     ap.add_argument("--input", choices=["wks", "xyz"], default="wks")
-    ap.add_argument("--symmetries", choices=["ground-truth", "detect"], default="ground-truth",
-                    help="the shapes' reflections: from the .sym.vts ground truth, or detected")
+    ap.add_argument("--symmetries", choices=["ground-truth", "detect", "consensus"], default="ground-truth",
+                    help="the shapes' reflections: from the .sym.vts ground truth, detected, or detected "
+                         "and, on the training shapes, voted into one through their correspondences "
+                         "(symtorch.data.consensus; the held-out shapes keep their detected ones)")
+    ap.add_argument("--test-symmetries", choices=["ground-truth", "detect"], default=None,
+                    help="the held-out shapes' reflections, where they differ from --symmetries "
+                         "(e.g. trained with detected ones, tested with the ground truth's: what the "
+                         "detector's errors cost at test time, apart from in training)")
     ap.add_argument("--mirror", choices=["shape", "pair"], default="shape",
                     help="augment: mirror each shape on its own through its reflection (shape), or "
                          "both shapes of a pair together, which keeps their correspondence and needs "
@@ -353,6 +405,8 @@ def main() -> None:
                     help="learning rate: cosine decay to 0 over --steps (default), or constant")
     ap.add_argument("--w-equiv", type=float, default=1.0)
     ap.add_argument("--w-orient", type=float, default=1.0)
+    ap.add_argument("--w-feq", type=float, default=1.0,
+                    help="weight of the feature equivariance term of the equivariant run")
     ap.add_argument("--max-distortion", type=float, default=None,
                     help="use a shape's reflection only where its distortion (KLC radii, 64 samples) "
                          "is at most this; the others are neither symmetrized nor mirrored")
@@ -373,8 +427,9 @@ def main() -> None:
     torch.set_num_threads(1)
     root = dataset_root(args.dataset, args.scape_r)
     t0 = time.perf_counter()
-    ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, args.symmetries),
-                                 processed_dir=args.cache / f"{args.dataset}-{args.symmetries}")
+    source = "detect" if args.symmetries == "consensus" else args.symmetries
+    ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, source),
+                                 processed_dir=args.cache / f"{args.dataset}-{source}")
     data = [ds[i] for i in range(len(ds))]
     names = [s["name"] for s in data]
     log.info(f"{args.dataset}: {len(data)} shapes, precompute/load {time.perf_counter() - t0:.0f} s")
@@ -383,6 +438,14 @@ def main() -> None:
         data = drop_distorted_reflections(data, dist, args.max_distortion)
         log.info(f"reflections kept (distortion <= {args.max_distortion}): "
                  f"{sum(d <= args.max_distortion for d in dist.values())} of {len(dist)}")
+    args.test_symmetries = args.test_symmetries or args.symmetries
+    data_test = data
+    if args.test_symmetries != args.symmetries:
+        ds_t = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, args.test_symmetries),
+                                       processed_dir=args.cache / f"{args.dataset}-{args.test_symmetries}")
+        data_test = [ds_t[i] for i in range(len(ds_t))]
+        if [s["name"] for s in data_test] != names:
+            raise SystemExit("error: the two symmetry sources list different shapes")
     within = args.dataset == "TOSCA_Isometric"
     train_idx, test_idx = split_shapes(names, args.dataset, args.seed)
     if args.regime == "quarter":
@@ -397,6 +460,17 @@ def main() -> None:
                                [:max(1, math.ceil(len(idx) / 4))])
         else:
             train_idx = sorted(train_idx[j] for j in torch.randperm(len(train_idx), generator=g)[:keep].tolist())
+    if args.symmetries == "consensus":  # the training shapes' reflections, voted through their corr
+        data = list(data)
+        for cls in sorted({class_key(names[i]) if within else "" for i in train_idx}):
+            voters = [i for i in train_idx if not within or class_key(names[i]) == cls]
+            tr = template_reflection([data[i] for i in voters])
+            log.info(f"consensus{' ' + cls if cls else ''}: {tr.n_shapes} shapes voted, median "
+                     f"support {float(tr.support.median()):.2f}")
+            for i in voters:
+                data[i] = with_template_reflection(data[i], tr)
+        if args.test_symmetries == args.symmetries:
+            data_test = data  # the held-out shapes keep their detected reflections
     train_pairs = pairs_of(train_idx, names, within)
     test_pairs = pairs_of(test_idx, names, within)
     if len(test_pairs) > args.max_pairs:
@@ -416,20 +490,21 @@ def main() -> None:
                                          f"{'' if args.max_distortion is None else f'_d{args.max_distortion}'}.pt")
         if args.reuse and saved.exists():  # evaluate a model trained by an earlier call
             model = Matcher(args.input, args.n_wks, args.k, args.k_eig, args.width, args.out,
-                            symmetrize=run == "symmetrize")
+                            symmetrize=run == "symmetrize", spectral=run == "spectral")
             model.load_state_dict(torch.load(saved, weights_only=True))
         else:
             model = train(run, data, train_pairs, args)
             saved.parent.mkdir(parents=True, exist_ok=True)
             torch.save(model.state_dict(), saved)
         t_train = time.perf_counter() - t1
-        results = evaluate(model, data, test_pairs, args, evaluator)
+        results = evaluate(model, data_test, test_pairs, args, evaluator)
         for post, res in results.items():
             run_name = run if args.mirror == "shape" or run == "baseline" else f"{run}-pair"
             if args.max_distortion is not None and run != "baseline":
                 run_name += f"-d{args.max_distortion:g}"
             row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run_name + post,
-                       symmetries=args.symmetries, schedule=args.schedule,
+                       symmetries=args.symmetries, test_symmetries=args.test_symmetries,
+                       schedule=args.schedule,
                        max_distortion=args.max_distortion,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
                        flipped=res.flipped_share, up_to_symmetry=res.mean_up_to_symmetry,

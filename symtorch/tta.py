@@ -25,7 +25,7 @@ from typing import Callable
 import torch
 from torch import Tensor
 
-from .data.symmetry import mirror_shape
+from .data.symmetry import mirror_shape, reflection_index
 
 __all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_average",
            "reflection_index"]
@@ -52,16 +52,6 @@ def mirror_averaged_fmap(fmap_fn: Callable[[dict, dict], Tensor], x: dict, y: di
     """
     xm, ym = mirror_pair(x, y, axis)
     return 0.5 * (fmap_fn(x, y) + fmap_fn(xm, ym))
-
-
-def reflection_index(sample: dict) -> int | None:
-    """The index in ``sym_p2p`` of the sample's first orientation-reversing symmetry
-    (``sym_reverses``), or None where it has none."""
-    rev = sample.get("sym_reverses")
-    if rev is None:
-        return None
-    idx = torch.nonzero(torch.as_tensor(rev)).flatten()
-    return int(idx[0]) if len(idx) else None
 
 
 def symmetrized_features(feature_fn: Callable[[dict], Tensor], sample: dict, axis: int = 0) -> Tensor:

@@ -27,7 +27,7 @@ from torch import Tensor
 from .transforms import INDEX_FIELDS, _require, _store_symmetries
 
 __all__ = ["AUGMENT_MODES", "DENSE_METHODS", "apply_symmetry", "mirror_shape", "RandomSymmetry",
-           "SymmetryFromCorrespondence", "dense_map_from_pairs", "one_rings"]
+           "SymmetryFromCorrespondence", "dense_map_from_pairs", "one_rings", "reflection_index"]
 
 #: The ways :func:`apply_symmetry` can use a symmetry.
 AUGMENT_MODES = ("relabel", "mirror")
@@ -88,6 +88,16 @@ def mirror_shape(sample: dict, axis: int = 0) -> dict:
     for key in sample.keys() & set(CONJUGATED_FIELDS):
         out[key] = sample[key] * torch.tensor([1.0, -1.0], dtype=sample[key].dtype)
     return out
+
+
+def reflection_index(sample: dict) -> int | None:
+    """The index in ``sym_p2p`` of the sample's first orientation-reversing symmetry
+    (``sym_reverses``), or None where it has none."""
+    rev = sample.get("sym_reverses")
+    if rev is None:
+        return None
+    idx = torch.nonzero(torch.as_tensor(rev)).flatten()
+    return int(idx[0]) if len(idx) else None
 
 
 def _reverses(sample: dict, who: str) -> Tensor:
