@@ -74,7 +74,8 @@ from symtorch.eval import CorrespondenceEvaluator, summarize_pairs
 from symtorch.maps import fmap_to_p2p
 from symtorch.data.symmetry import mirror_shape
 from symtorch.flips import VoteSmoother, resolve_symmetry_parts
-from symtorch.tta import mirror_pair, reflection_average, reflection_index, symmetrized_features
+from symtorch.tta import (mirror_pair, reflection_average, reflection_index, spectral_reflection_average,
+                          symmetrized_features)
 from symtorch.orientation import orientation_residual, resolve_symmetry_p2p
 from symtorch.paths import shared_path
 from symtorch.detect.verification import isometry_score
@@ -204,10 +205,7 @@ class Matcher(torch.nn.Module):
         taken as its matrix ``S`` (``sym_fmap``, pull-back) in the first K eigenfunctions instead
         of its vertex map: the average then depends only on the reflection's low frequencies,
         where a detected matrix is as good as the ground truth's. ``A`` where there is no reflection."""
-        r = reflection_index(s)
-        if r is None:
-            return A
-        return 0.5 * (A + s["sym_fmap"][r][:self.k, :self.k].to(A) @ A_m)
+        return spectral_reflection_average(A, A_m, s)
 
     def project(self, F: torch.Tensor, s: dict) -> torch.Tensor:
         ev = s["evecs"][:, :self.k].float()

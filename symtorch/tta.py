@@ -17,6 +17,13 @@ ground truth so), so a network that learned orientation gives ``f(x')[R(v)] ~ f(
 mean of the two is the network averaged over the shape's reflection group {1, R} (group averaging):
 features that are mirror-equivariant by construction, one shape at a time, in training
 (``scripts/train_symmetry.py``'s ``symmetrize`` run) or at test time on any network.
+
+:func:`spectral_reflection_average` takes the same average in the reduced basis, through the
+reflection's matrix ``S`` (``sym_fmap``) instead of its vertex map: ``(A + S A') / 2`` on the
+features' spectral coefficients. It reads only the reflection's first K frequencies, so a detected
+reflection, whose vertex map is off by a fraction of a KLC radius, averages almost as the exact one
+does; the vertex-level average is sensitive to that offset (BENCHMARKS.md, "Training with
+symmetries").
 """
 from __future__ import annotations
 
@@ -28,7 +35,7 @@ from torch import Tensor
 from .data.symmetry import mirror_shape, reflection_index
 
 __all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_average",
-           "reflection_index"]
+           "spectral_reflection_average", "reflection_index"]
 
 
 def mirror_pair(x: dict, y: dict, axis: int = 0) -> tuple[dict, dict]:
@@ -89,3 +96,30 @@ def reflection_average(F: Tensor, F_mirror: Tensor, sample: dict) -> Tensor:
     if R.shape != (F.shape[0],):
         raise ValueError(f"sym_p2p[{r}] must be [V] = [{F.shape[0]}], got {list(R.shape)}")
     return 0.5 * (F + F_mirror[R])
+
+
+def spectral_reflection_average(A: Tensor, A_mirror: Tensor, sample: dict) -> Tensor:
+    """``(A + S A') / 2``: :func:`reflection_average` on spectral coefficients, with the reflection
+    taken as its matrix in the first K eigenfunctions.
+
+    With ``A = evecs_K^T M F`` the coefficients of features on the shape and ``A'`` those of the
+    features on its mirror image, the coefficients of ``F'∘R`` are ``S A'`` for the pull-back matrix
+    ``S`` of R (``evecs[R] ≈ evecs @ S``), up to what R does above the K-th frequency.
+
+    Args:
+        A, A_mirror: [K, D] coefficients of the features of the shape and of its mirror image.
+        sample: with ``sym_fmap [G, K', K']`` (K' >= K) and ``sym_reverses [G]``.
+
+    Returns:
+        [K, D]; ``A`` where the sample has no reflection.
+    """
+    r = reflection_index(sample)
+    if r is None:
+        return A
+    k = A.shape[-2]
+    S = torch.as_tensor(sample["sym_fmap"][r])
+    if S.shape[-1] < k:
+        raise ValueError(f"sym_fmap[{r}] is {S.shape[-1]} x {S.shape[-1]}, smaller than the {k} "
+                         "coefficients to average")
+    return 0.5 * (A + S[:k, :k].to(A) @ A_mirror)
+

@@ -72,3 +72,26 @@ def test_symmetrized_features_without_a_reflection_are_the_network_s():
     x["sym_p2p"] = x["sym_p2p"][:, :5]
     with pytest.raises(ValueError, match="sym_p2p"):
         symmetrized_features(lambda s: s["verts"], x)
+
+
+def test_the_spectral_average_is_the_vertex_average_read_in_the_reduced_basis():
+    from symtorch.data import ComputeSpectrum, SetSymmetries
+    from symtorch.tta import reflection_average, spectral_reflection_average
+
+    verts, faces, mirror = mirror_mesh(2)
+    s = ComputeSpectrum(k=16)({"verts": verts, "faces": faces})
+    s = SetSymmetries(torch.stack([torch.arange(len(verts)), mirror]), reverses=[False, True])(s)
+    k = 10
+    Phi, M = s["evecs"][:, :k], s["mass"][:, None]
+    g = torch.Generator().manual_seed(0)
+    F = Phi @ torch.randn(k, 3, generator=g, dtype=Phi.dtype)      # band-limited features
+    F_m = Phi @ torch.randn(k, 3, generator=g, dtype=Phi.dtype)
+    A, A_m = Phi.mT @ (M * F), Phi.mT @ (M * F_m)
+    got = spectral_reflection_average(A, A_m, s)
+    want = Phi.mT @ (M * reflection_average(F, F_m, s))              # the vertex-level average
+    assert torch.allclose(got, want, atol=1e-6)
+    assert not torch.allclose(got, 0.5 * (A + A_m), atol=1e-3)      # the reflection does act
+    no = dict(s, sym_reverses=torch.tensor([False, False]))
+    assert torch.equal(spectral_reflection_average(A, A_m, no), A)
+    with pytest.raises(ValueError, match="smaller"):
+        spectral_reflection_average(torch.zeros(20, 3, dtype=A.dtype), torch.zeros(20, 3, dtype=A.dtype), s)
