@@ -35,7 +35,7 @@ from torch import Tensor
 from .data.symmetry import mirror_shape, reflection_index
 
 __all__ = ["mirror_pair", "mirror_averaged_fmap", "symmetrized_features", "reflection_average",
-           "spectral_reflection_average", "reflection_index"]
+           "spectral_reflection_average", "reflection_residual", "reflection_index"]
 
 
 def mirror_pair(x: dict, y: dict, axis: int = 0) -> tuple[dict, dict]:
@@ -122,4 +122,27 @@ def spectral_reflection_average(A: Tensor, A_mirror: Tensor, sample: dict) -> Te
         raise ValueError(f"sym_fmap[{r}] is {S.shape[-1]} x {S.shape[-1]}, smaller than the {k} "
                          "coefficients to average")
     return 0.5 * (A + S[:k, :k].to(A) @ A_mirror)
+
+
+def reflection_residual(F: Tensor, F_mirror: Tensor, sample: dict) -> float:
+    """``||F - F'∘R|| / ||F||``: how far a network's features are from agreeing with the shape's
+    reflection R, a check of R by the network.
+
+    A network shown mirror images gives ``f(x')[R(v)] ~ f(x)[v]`` for the true reflection; a wrong
+    R (a competing near-symmetry: an arm swapped, a leg mirrored onto itself) reads the mirror's
+    features at the wrong places. On SCAPE_r the ranking separates the detector's wrong reflections
+    from its right ones better than the detector's own confidence does (BENCHMARKS.md, "Training
+    with symmetries"); no threshold is fixed here.
+
+    Args:
+        F, F_mirror: [V, D] features of the shape and of its mirror image.
+        sample: with ``sym_p2p [G, V]`` and ``sym_reverses [G]``.
+
+    Returns:
+        the residual, nan where the sample has no reflection.
+    """
+    if reflection_index(sample) is None:
+        return float("nan")
+    avg = reflection_average(F, F_mirror, sample)  # (F + F'∘R) / 2, so F - F'∘R = 2 (F - avg)
+    return float(2 * (F - avg).norm() / F.norm().clamp_min(1e-12))
 

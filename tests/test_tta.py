@@ -95,3 +95,19 @@ def test_the_spectral_average_is_the_vertex_average_read_in_the_reduced_basis():
     assert torch.equal(spectral_reflection_average(A, A_m, no), A)
     with pytest.raises(ValueError, match="smaller"):
         spectral_reflection_average(torch.zeros(20, 3, dtype=A.dtype), torch.zeros(20, 3, dtype=A.dtype), s)
+
+
+def test_the_reflection_residual_is_zero_for_the_true_reflection_and_large_for_a_wrong_one():
+    import math
+
+    from symtorch.tta import reflection_residual
+
+    verts, faces, mirror = mirror_mesh(2)
+    x = _with_reflection(verts, faces, mirror)
+    F = verts.clone()                      # features of the shape: its coordinates
+    F_m = verts.clone()
+    F_m[:, 0] = -F_m[:, 0]                 # of the mirror image x' (x negated), same vertex ids
+    assert reflection_residual(F, F_m, x) < 1e-12
+    wrong = dict(x, sym_p2p=torch.stack([x["sym_p2p"][0], torch.roll(mirror, len(mirror) // 2)]))
+    assert reflection_residual(F, F_m, wrong) > 0.5
+    assert math.isnan(reflection_residual(F, F_m, dict(x, sym_reverses=torch.tensor([False, False]))))
