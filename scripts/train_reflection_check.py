@@ -1,6 +1,6 @@
 """Which detected reflections are wrong, and what they cost a trained network: one table per model.
 
-    python scripts/train_reflection_check.py --dataset SCAPE_r --seed 0 [--run symmetrize] [--gate 0.45]
+    python scripts/train_reflection_check.py --dataset SCAPE_r --seed 0 [--regime quarter] [--run symmetrize] [--gate 0.45]
 
 Reads what ``scripts/train_symmetry.py`` cached (the shapes with detected and with ground-truth
 reflections, the model saved by ``--symmetries detect``). Per shape: how right its detected
@@ -53,19 +53,26 @@ def auroc(wrong: np.ndarray, x: np.ndarray) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--dataset", choices=["FAUST", "TOSCA_Isometric", "SCAPE_r"], default="SCAPE_r")
+    ap.add_argument("--regime", choices=["full", "quarter"], default="quarter")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--run", default="symmetrize")
     ap.add_argument("--gate", type=float, default=None)
+    ap.add_argument("--scape-r", type=Path, default=Path("/work/data_derived/SCAPE_r"))
     ap.add_argument("--cache", type=Path, default=T.ROOT / ".symtorch_cache" / "train_symmetry")
     args = ap.parse_args()
     warnings.filterwarnings("ignore")
     torch.set_num_threads(1)
-    load = lambda kind: [torch.load(p, weights_only=False)["sample"]  # noqa: E731
-                         for p in sorted((args.cache / f"{args.dataset}-{kind}").glob("*.pt"))]
+    root = T.dataset_root(args.dataset, args.scape_r)
+
+    def load(kind: str) -> list[dict]:  # train_symmetry.py's cache, in its dataset order
+        ds = T.MeshDataset.from_layout(root, T.pre_transform(78, 64, kind),
+                                       processed_dir=args.cache / f"{args.dataset}-{kind}")
+        return [ds[i] for i in range(len(ds))]
+
     det, gt = load("detect"), load("ground-truth")
     if not det or [s["name"] for s in det] != [s["name"] for s in gt]:
         raise SystemExit("error: run train_symmetry.py with --symmetries detect and ground-truth first")
-    name = f"{args.dataset}_quarter_wks_{args.run}_detect_s{args.seed}_n300_cos.pt"
+    name = f"{args.dataset}_{args.regime}_wks_{args.run}_detect_s{args.seed}_n300_cos.pt"
     model = T.Matcher("wks", 64, 30, 64, 64, 64, symmetrize=args.run == "symmetrize")
     model.load_state_dict(torch.load(args.cache / "models" / name, weights_only=True))
     model.eval()
