@@ -41,10 +41,10 @@ Runs:
   operators; hinged the same way) in training and ``resolve_symmetry_p2p`` on the predicted maps.
 
 Evaluation (the field's protocol) on held-out pairs: the point map from the functional map by
-nearest neighbours in the spectral embedding, geodesic error per template point on the unit-area
-target, divided by sqrt(area) (= 1): mean error, share of maps closer to the symmetric ground truth
-than to the truth (flipped), error up to symmetry. Every run is also scored after
-``resolve_symmetry`` (a post-process any user can bolt on to any network's maps).
+nearest neighbours in the spectral embedding (also after ZoomOut, ``+zo``, as the field reports it),
+geodesic error per template point on the unit-area target, divided by sqrt(area) (= 1): mean error,
+share of maps closer to the symmetric ground truth than to the truth (flipped), error up to
+symmetry. Every run is also scored after ``resolve_symmetry`` (a post-process any user can bolt on to any network's maps).
 """
 from __future__ import annotations
 
@@ -81,6 +81,7 @@ from symtorch.paths import shared_path
 from symtorch.detect.verification import isometry_score
 from symtorch.geodesics import GeodesicSolver
 from symtorch.sampling import farthest_point_sampling
+from symtorch.zoomout import zoomout
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = ("baseline", "augment", "symmetrize", "spectral", "equivariant", "losses", "full")
@@ -319,9 +320,11 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
 # ------------------------------------------------------------------------------------- evaluation
 #: Post-processes scored for every run: none, the global orientation vote, the part-wise one (with
 #: ``--parts``), mirror test-time averaging (the pair and its mirror image), the same followed by the
-#: part-wise vote (``--parts``), and symmetric feature averaging (each shape's features and its
-#: mirror image's read through the shape's reflection, :func:`symtorch.tta.symmetrized_features`).
-POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta")
+#: part-wise vote (``--parts``), symmetric feature averaging (each shape's features and its
+#: mirror image's read through the shape's reflection, :func:`symtorch.tta.symmetrized_features`),
+#: and ZoomOut (:func:`symtorch.zoomout.zoomout`, to ``--zoomout-k`` eigenfunctions) after the plain
+#: map and after mirror test-time averaging.
+POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta", "+zo", "+tta+zo")
 
 
 @torch.no_grad()
@@ -340,7 +343,8 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     # symmetric averaging, shape by shape, of the features computed above (symmetrized_features)
     symmetrized = {i: model.project(reflection_average(feats[i], feats_m[i], data[i]), data[i])
                    for i in ids}
-    scores: dict[str, list] = {post: [] for post in POSTS if args.parts or "parts" not in post}
+    scores: dict[str, list] = {post: [] for post in POSTS if (args.parts or "parts" not in post)
+                               and (args.zoomout_k > 0 or "zo" not in post)}
 
     def p2p_of(C, x, y):
         return fmap_to_p2p(C.double(), x["evecs"][:, :k].double(), y["evecs"][:, :k].double())
@@ -359,12 +363,17 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
         p2p = p2p_of(C, x, y)
         # both shapes mirrored keep their vertex-id correspondence: symtorch.tta.mirror_averaged_fmap,
         # written out so that each shape's coefficients are computed once, not once per pair
-        p2p_tta = p2p_of(0.5 * (C + model.fmap(mirrored[i], mirrored[j], x, y)), x, y)
+        C_tta = 0.5 * (C + model.fmap(mirrored[i], mirrored[j], x, y))
+        p2p_tta = p2p_of(C_tta, x, y)
         # the global choice: the orientation vote of the mapped triangles over the whole shape
         glob = resolve_symmetry_p2p(p2p, x["verts"].double(), x["faces"], y["verts"].double(),
                                     y["faces"], y["sym_p2p"]).p2p
         p2p_stta = p2p_of(model.fmap(symmetrized[i], symmetrized[j], x, y), x, y)
         maps = {"": p2p, "+resolve": glob, "+tta": p2p_tta, "+stta": p2p_stta}
+        if args.zoomout_k > 0:
+            for post, C_post in (("+zo", C), ("+tta+zo", C_tta)):
+                maps[post] = zoomout(C_post.double(), x["evecs"].double(), y["evecs"].double(),
+                                     y["mass"].double(), args.zoomout_k).p2p
         if args.parts:
             maps.update({"+parts": parts(p2p, j, x, y), "+tta+parts": parts(p2p_tta, j, x, y)})
         for post, m in maps.items():
@@ -410,6 +419,9 @@ def main() -> None:
                          "is at most this; the others are neither symmetrized nor mirrored")
     ap.add_argument("--parts", action="store_true",
                     help="also score the part-wise flip vote (+parts, +tta+parts; slower)")
+    ap.add_argument("--zoomout-k", type=int, default=78,
+                    help="also score each map after ZoomOut to this many eigenfunctions (+zo, "
+                         "+tta+zo; at most --k-spectrum; 0: not)")
     ap.add_argument("--n-points", type=int, default=500, help="template points scored per pair")
     ap.add_argument("--max-pairs", type=int, default=100, help="held-out pairs scored (evenly spaced)")
     ap.add_argument("--seed", type=int, default=0)
