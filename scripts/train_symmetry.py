@@ -430,6 +430,8 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true",
                     help="evaluate the models an earlier call saved with the same settings")
     ap.add_argument("--json", type=Path, default=None, help="append the result rows to this file")
+    ap.add_argument("--per-pair", type=Path, default=None,
+                    help="append each held-out pair's scores (per run and post-process) to this file")
     args = ap.parse_args()
 
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
@@ -530,6 +532,13 @@ def main() -> None:
             with open(args.json, "a") as fh:
                 for row in rows[-len(results):]:
                     fh.write(json.dumps(row) + "\n")
+        if args.per_pair is not None:  # one line per run, post-process and held-out pair
+            with open(args.per_pair, "a") as fh:
+                for post, res in results.items():
+                    for (i, j), p in zip(test_pairs, res.pairs):
+                        fh.write(json.dumps(dict(dataset=args.dataset, regime=args.regime, run=run + post,
+                                                 seed=args.seed, x=names[i], y=names[j], error=p.mean,
+                                                 error_sym=p.mean_sym, flipped=p.flipped)) + "\n")
 
 
 if __name__ == "__main__":

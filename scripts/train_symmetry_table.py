@@ -24,9 +24,10 @@ def by_seed(rows: dict, pipeline: str) -> None:
     """One line per dataset, regime and seed, then per column the mean over the seeds that have it
     and the baseline (``+resolve``: the baseline's maps after ``resolve_symmetry_p2p``, the
     post-process any user can bolt on): error (its ratio to the baseline's mean over the same seeds,
-    mean flipped share)."""
+    mean flipped share). The ``+zo`` columns (after ZoomOut) are compared with ``baseline+zo``: a
+    refinement any network's maps get is not counted as the symmetry's gain."""
     cols = ("baseline", "baseline+resolve", "baseline+tta", "baseline+stta", "augment", "augment+tta",
-            "augment+stta", "symmetrize", "symmetrize+tta")
+            "augment+stta", "symmetrize", "symmetrize+tta", "baseline+zo", "symmetrize+tta+zo")
     cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
     print("|---|---:|" + "---:|" * len(cols))
@@ -46,11 +47,13 @@ def by_seed(rows: dict, pipeline: str) -> None:
             if not have:
                 cells.append("–")
                 continue
+            ref = cols.index("baseline+zo") if col.endswith("+zo") and "baseline+zo" in cols else 0
+            have = [r for r in have if r[ref] is not None]
             mean = sum(r[c]["error"] for r in have) / len(have)
-            base = sum(r[0]["error"] for r in have) / len(have)
+            base = sum(r[ref]["error"] for r in have) / len(have)
             flipped = 100 * sum(r[c]["flipped"] for r in have) / len(have)
-            cell = f"{mean:.4f} (" + ("" if c == 0 else f"{mean / base:.2f}x, ") + f"{flipped:.1f} %)"
-            cells.append(f"**{cell}**" if col == pipeline else cell)
+            cell = f"{mean:.4f} (" + ("" if c == ref else f"{mean / base:.2f}x, ") + f"{flipped:.1f} %)"
+            cells.append(f"**{cell}**" if col in (pipeline, pipeline + "+zo") else cell)
         n = {sum(r[c] is not None for r in table.values()) for c in range(len(cols))} - {0}
         label = f"mean of {max(n)}" if len(n) == 1 else f"mean ({min(n)}-{max(n)} seeds)"
         print(f"| {setting} | {label} | " + " | ".join(cells) + " |")
