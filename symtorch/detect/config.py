@@ -16,8 +16,8 @@ __all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION
 #: Raised whenever the default detection's results change (a new stage, a new default): it is part
 #: of the cache key of ``symtorch.data.DetectSymmetries``, so that symmetries cached by an earlier
 #: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties;
-#: 3: the orientation-reversing functional-map candidate.
-DETECTOR_REVISION = 3
+#: 3: the orientation-reversing functional-map candidate; 4: the group path's alternative elements.
+DETECTOR_REVISION = 4
 
 
 @dataclass(frozen=True)
@@ -133,6 +133,10 @@ class GroupConfig:
         max_modes: most clusters refined.
         n_samples: sample vertices for refinement and verification.
         max_distortion: an element whose geodesic distortion exceeds this is rejected.
+        n_alternatives: per element, most coarse duplicates kept as alternatives (those whose maps
+            differ from it by at least ``alternative_gap`` KLC radii on average); each is upsampled
+            and measured exactly too, and the least distorted version kept (0: none).
+        alternative_gap: mean image gap, in KLC radii, from which a duplicate is an alternative.
     """
 
     refine: str = "zoomout"
@@ -147,6 +151,8 @@ class GroupConfig:
     max_modes: int = 64
     n_samples: int = 1000
     max_distortion: float = 0.25
+    n_alternatives: int = 1
+    alternative_gap: float = 0.1
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):

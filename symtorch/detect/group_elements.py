@@ -140,8 +140,16 @@ class CoarseElements:
     """The elements verified in the coarse basis, identity first; :meth:`add` refines, screens and
     deduplicates a candidate, :meth:`close` adds what composition implies.
 
+    Two versions of one symmetry can pass the same-map test (their images within half a KLC radius
+    of each other) and still differ where it matters: on a thin part, one may swap the part's two
+    faces. The cheap screen cannot always tell which is right, so the duplicates that differ
+    materially from the element kept (mean image gap at least ``cfg.alternative_gap`` radii) are
+    kept as its *alternatives* (at most ``cfg.n_alternatives``, least distorted first), for
+    :func:`upsample_elements` to measure exactly.
+
     Attributes:
         elements: the accepted :class:`CoarseElement` s.
+        alternatives: element index -> its alternative :class:`CoarseElement` s.
         trace: (distortion, index of the element it duplicates or -1) per candidate added.
         rejected: distortions of the candidates rejected by the screen.
     """
@@ -150,8 +158,23 @@ class CoarseElements:
         self.geo, self.bands0, self.k0, self.cfg = geo, bands0, k0, cfg
         eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
         self.elements = [CoarseElement(eye0, geo.score_samples.clone(), 0.0)]
+        self.alternatives: dict[int, list[CoarseElement]] = {}
         self.trace: list[tuple[float, int]] = []
         self.rejected: list[float] = []
+
+    def image_gap(self, a: Tensor, b: Tensor) -> float:
+        """Mean distance (unit-area shape) between two image sets of the score samples."""
+        x = self.geo.verts
+        return float((x[a] - x[b]).norm(dim=-1).mean())
+
+    def _keep_alternative(self, j: int, alt: CoarseElement) -> None:
+        """Keep ``alt`` as an alternative of element ``j`` when it differs from it materially."""
+        if j == 0 or self.cfg.n_alternatives <= 0:
+            return
+        if self.image_gap(alt.images, self.elements[j].images) < self.cfg.alternative_gap * EPS_KLC:
+            return
+        alts = sorted(self.alternatives.get(j, []) + [alt], key=lambda e: e.distortion)
+        self.alternatives[j] = alts[:self.cfg.n_alternatives]
 
     def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
         """An accepted element with the same images (mean gap < eps/2) or matrix (< DEFAULT_TOL)."""
@@ -185,8 +208,13 @@ class CoarseElements:
             self.rejected.append(round(dst, 3))
             return False
         if j >= 0:
+            new = CoarseElement(C0, img, dst)
             if dst < self.elements[j].distortion:
-                self.elements[j] = CoarseElement(C0, img, dst)
+                new, self.elements[j] = self.elements[j], new
+                self.alternatives[j] = [a for a in self.alternatives.get(j, [])
+                                        if self.image_gap(a.images, img)
+                                        >= self.cfg.alternative_gap * EPS_KLC]
+            self._keep_alternative(j, new)
             return False
         self.elements.append(CoarseElement(C0, img, dst))
         return True
@@ -216,12 +244,17 @@ class CoarseElements:
 
 
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
-                      bands: list[range], k0: int, kf: int, max_distortion: float) -> tuple[list[Element], list[float]]:
+                      bands: list[range], k0: int, kf: int, max_distortion: float,
+                      alternatives: dict[int, list[CoarseElement]] | None = None,
+                      ) -> tuple[list[Element], list[float]]:
     """Grow the coarse elements to ``kf``, map every vertex and measure each exactly.
 
     An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
-    map (its matrix in the refined basis then comes from that map). Elements still above it are
-    dropped, the identity never.
+    map (its matrix in the refined basis then comes from that map). Each of an element's
+    ``alternatives`` (:class:`CoarseElements`) is grown and measured too, and replaces the element
+    where it distorts less; the products that a replaced element takes part in are then re-made from
+    it (:func:`_remake_products`), since the element they were closed from was the wrong version.
+    Elements still above ``max_distortion`` are dropped, the identity never.
 
     Returns:
         (the elements kept, identity first; the rejected elements' distortions).
@@ -234,20 +267,57 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
         D_img = torch.as_tensor(np.asarray(solver.distances_from(g[src])))[:, p2p[geo.score_samples]]
         return float((D_img - D_src).abs().mean() / EPS_KLC)
 
+    def from_map(p2p: Tensor) -> Element:
+        """The element of a vertex map: its block-projected matrix in the refined basis."""
+        Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
+        return Element(Cf, p2p, exact_distortion(p2p))
+
+    def grown(e: CoarseElement) -> Element:
+        Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
+        p2p = geo.p2p(Cf)
+        return Element(Cf, p2p, exact_distortion(p2p))
+
     V = geo.evecs.shape[0]
     eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
     final: list[Element] = []
     for e in coarse:
         if e.distortion == 0.0 and float((e.fmap - eye0).abs().max()) == 0.0:
-            Cf, p2p = torch.eye(kf, dtype=geo.evecs.dtype), torch.arange(V)
+            final.append(Element(torch.eye(kf, dtype=geo.evecs.dtype), torch.arange(V), 0.0))
         else:
-            Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
-            p2p = geo.p2p(Cf)
-        final.append(Element(Cf, p2p, exact_distortion(p2p) if len(final) else 0.0))
+            final.append(grown(e))
     for i, e in enumerate(final):
         if e.distortion > max_distortion and coarse[i].distortion <= max_distortion and kf != k0:
-            p2p = geo.p2p(coarse[i].fmap)
-            Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
-            final[i] = Element(Cf, p2p, exact_distortion(p2p))
+            final[i] = from_map(geo.p2p(coarse[i].fmap))
+    replaced = []
+    for i, alts in sorted((alternatives or {}).items()):
+        for a in alts:
+            alt = grown(a)
+            if alt.distortion < final[i].distortion:
+                final[i] = alt
+                replaced.append(i)
+    if replaced:
+        _remake_products(final, sorted(set(replaced)), geo, from_map)
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
     return [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0], rejected
+
+
+def _remake_products(final: list[Element], replaced: list[int], geo: Geometry, from_map) -> None:
+    """For each replaced element ``a`` and every other element ``b``, the products ``a∘b`` and
+    ``b∘a`` (vertex maps composed): where one is the same map as an element ``c`` (mean image gap on
+    the score samples under half a KLC radius) and distorts less than it, it replaces ``c``
+    (in place). Only products that name an element already found are made: no element is added."""
+    x, S = geo.verts, geo.score_samples
+    imgs = lambda: torch.stack([x[e.p2p[S]] for e in final])  # noqa: E731  [G, S', 3]
+    for i in replaced:
+        a = final[i].p2p
+        for j in range(1, len(final)):
+            if j == i:
+                continue
+            for prod in (a[final[j].p2p], final[j].p2p[a]):
+                gap = (imgs() - x[prod[S]][None]).norm(dim=-1).mean(-1)  # [G]
+                c = int(gap.argmin())
+                if c in (0, i) or float(gap[c]) >= 0.5 * EPS_KLC:
+                    continue
+                cand = from_map(prod)
+                if cand.distortion < final[c].distortion:
+                    final[c] = cand

@@ -243,7 +243,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         return trivial(f"{len(coarse.elements)} elements verified in the coarse basis, fewer than the "
                        f"{min_order} asked for")
     elements, rejected = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,
-                                           basis.k_refine, cfg.max_distortion)
+                                           basis.k_refine, cfg.max_distortion, coarse.alternatives)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
     symmetries, group, diag = group_of_elements(elements, geo, faces, diag)
