@@ -26,3 +26,54 @@ def test_batched_icp_on_device(device):
     assert got.device == device and got.shape == C.shape
     torch.testing.assert_close(got.cpu(), ref, atol=1e-8, rtol=0)
     assert float((ref - C).norm(dim=(1, 2)).max()) < float((noisy - C).norm(dim=(1, 2)).min())
+
+
+def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_products():
+    """The table's C4v with one quarter turn and one of its products given as noisy coarse maps: the
+    exact version of the quarter turn, given as its alternative, replaces it, and the product is
+    re-made from it; without the alternative both stay noisy."""
+    from symtorch.detect.group_elements import CoarseElement, Geometry, upsample_elements
+    from symtorch.geodesics import GeodesicSolver
+    from symtorch.maps import p2p_to_fmap
+    from symtorch.procrustes import block_project
+    from symtorch.sampling import farthest_point_sampling
+    from symtorch.spectrum import band_boundary, laplacian_spectrum, solved_bands
+
+    v, f = shapes.table(3)
+    s = laplacian_spectrum(v, f, k=40)
+    bands = solved_bands(s.evals)
+    k0 = band_boundary(bands, 24)
+    bands0 = [b for b in bands if b.stop <= k0]
+    vu = v * s.scale
+    solver = GeodesicSolver(vu, f)
+    points = farthest_point_sampling(torch.as_tensor(vu), 8)
+    geo = Geometry(vu, s, points.numpy(), solver.distances_from(points.numpy()).double(), n_samples=300)
+    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, shapes.true_symmetries("table"))]
+    fm = [block_project(p2p_to_fmap(p, s.evecs[:, :k0], s.mass), bands0) for p in true]
+    # element a (a quarter turn) and c = a∘b noisy; b exact
+    a, b = 1, next(j for j in range(2, len(true)) if j != 1)
+    prod = true[a][true[b]]
+    c = next(j for j, p in enumerate(true) if bool((p == prod).all()))
+    assert c not in (0, a, b)
+    g = torch.Generator().manual_seed(0)
+    # a: a wrong map; c: the same map as the truth, only more distorted (the case alternatives are for)
+    noisy = {j: block_project(fm[j] + w * torch.randn(fm[j].shape, generator=g, dtype=fm[j].dtype), bands0)
+             for j, w in ((a, 1.0), (c, 0.35))}
+
+    def coarse_of(C):
+        return CoarseElement(C, geo.p2p(C, geo.score_samples), 0.1)
+
+    coarse = [CoarseElement(torch.eye(k0, dtype=s.evecs.dtype), geo.score_samples.clone(), 0.0)]
+    coarse += [coarse_of(noisy.get(j, fm[j])) for j in range(1, len(true))]
+    plain, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0)
+    fixed, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0, {a: [coarse_of(fm[a])]})
+
+    def error(p2p, j):  # mean distance to the true image (unit-area shape)
+        return float((geo.verts[p2p] - geo.verts[true[j]]).norm(dim=1).mean())
+
+    assert fixed[a].distortion < plain[a].distortion
+    assert error(fixed[a].p2p, a) < 1.5 * error(geo.p2p(fm[a]), a) < error(plain[a].p2p, a)
+    assert fixed[c].distortion < plain[c].distortion  # re-made from the fixed quarter turn
+    assert any(bool((fixed[c].p2p == p).all()) for p in (fixed[a].p2p[fixed[b].p2p], fixed[b].p2p[fixed[a].p2p]))
+    assert [float(e.distortion) for i, e in enumerate(fixed) if i not in (a, c)] == \
+        [float(e.distortion) for i, e in enumerate(plain) if i not in (a, c)]

@@ -165,7 +165,9 @@ def test_watertight_orbits(shared_data, mesh_id):
     eps = klc_threshold(solver.area)
     for s in res.symmetries:
         rate = float((dihedral_orbit_errors(solver, s.p2p, orbits) < eps).double().mean())
-        assert rate >= 0.85, f"{mesh_id} {s.kind}: orbit rate {rate:.2f}"
+        # 0.95: every element the right one (156's half turn and mirror once came composed with
+        # the swap of its top's two faces, 0.89; the group path's alternatives fixed that)
+        assert rate >= 0.95, f"{mesh_id} {s.kind}: orbit rate {rate:.2f}"
 
 
 @pytest.mark.extended
