@@ -243,6 +243,11 @@ class CoarseElements:
         return closed
 
 
+#: An element whose exact distortion is at most this share of ``max_distortion`` is kept as it is:
+#: its alternatives (:class:`CoarseElements`) are not measured (exact symmetries read ~0.001 of it).
+EXACT_ENOUGH = 0.1
+
+
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
                       bands: list[range], k0: int, kf: int, max_distortion: float,
                       alternatives: dict[int, list[CoarseElement]] | None = None,
@@ -251,8 +256,9 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
 
     An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
     map (its matrix in the refined basis then comes from that map). Each of an element's
-    ``alternatives`` (:class:`CoarseElements`) is grown and measured too, and replaces the element
-    where it distorts less; the products that a replaced element takes part in are then re-made from
+    ``alternatives`` (:class:`CoarseElements`) is grown and measured too (unless the element already
+    distorts by at most ``EXACT_ENOUGH * max_distortion``), and replaces the element where it
+    distorts less; the products that a replaced element takes part in are then re-made from
     it (:func:`_remake_products`), since the element they were closed from was the wrong version.
     Elements still above ``max_distortion`` are dropped, the identity never.
 
@@ -290,6 +296,8 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
             final[i] = from_map(geo.p2p(coarse[i].fmap))
     replaced = []
     for i, alts in sorted((alternatives or {}).items()):
+        if final[i].distortion <= EXACT_ENOUGH * max_distortion:  # nothing left to gain
+            continue
         for a in alts:
             alt = grown(a)
             if alt.distortion < final[i].distortion:
