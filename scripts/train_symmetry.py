@@ -44,7 +44,8 @@ Evaluation (the field's protocol) on held-out pairs: the point map from the func
 nearest neighbours in the spectral embedding (also after ZoomOut, ``+zo``, as the field reports it),
 geodesic error per template point on the unit-area target, divided by sqrt(area) (= 1): mean error,
 share of maps closer to the symmetric ground truth than to the truth (flipped), error up to
-symmetry. Every run is also scored after ``resolve_symmetry`` (a post-process any user can bolt on to any network's maps).
+symmetry. Every run is also scored after ``resolve_symmetry`` (a post-process any user can bolt on
+to any network's maps).
 """
 from __future__ import annotations
 
@@ -419,9 +420,9 @@ def main() -> None:
                          "is at most this; the others are neither symmetrized nor mirrored")
     ap.add_argument("--parts", action="store_true",
                     help="also score the part-wise flip vote (+parts, +tta+parts; slower)")
-    ap.add_argument("--zoomout-k", type=int, default=78,
+    ap.add_argument("--zoomout-k", type=int, default=None,
                     help="also score each map after ZoomOut to this many eigenfunctions (+zo, "
-                         "+tta+zo; at most --k-spectrum; 0: not)")
+                         "+tta+zo; default: all --k-spectrum cached; 0: not)")
     ap.add_argument("--n-points", type=int, default=500, help="template points scored per pair")
     ap.add_argument("--max-pairs", type=int, default=100, help="held-out pairs scored (evenly spaced)")
     ap.add_argument("--seed", type=int, default=0)
@@ -433,6 +434,8 @@ def main() -> None:
     ap.add_argument("--per-pair", type=Path, default=None,
                     help="append each held-out pair's scores (per run and post-process) to this file")
     args = ap.parse_args()
+    if args.zoomout_k is None:
+        args.zoomout_k = args.k_spectrum
 
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
     warnings.filterwarnings("ignore")

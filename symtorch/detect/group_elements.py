@@ -41,6 +41,12 @@ __all__ = ["Geometry", "CoarseElement", "CoarseElements", "Element", "upsample_e
            "batched_icp", "zoomout"]
 
 
+def image_gaps(verts: Tensor, images: Tensor, query: Tensor) -> Tensor:
+    """[G] mean distance between the points ``query [S']`` and each row of ``images [G, S']``
+    (vertex ids, images of the same samples), on ``verts [V, 3]``: how far apart two maps land."""
+    return (verts[images] - verts[query][None]).norm(dim=-1).mean(-1)
+
+
 class CoarseElement(NamedTuple):
     """An element verified in the coarse basis."""
 
@@ -164,8 +170,7 @@ class CoarseElements:
 
     def image_gap(self, a: Tensor, b: Tensor) -> float:
         """Mean distance (unit-area shape) between two image sets of the score samples."""
-        x = self.geo.verts
-        return float((x[a] - x[b]).norm(dim=-1).mean())
+        return float(image_gaps(self.geo.verts, a[None], b)[0])
 
     def _keep_alternative(self, j: int, alt: CoarseElement) -> None:
         """Keep ``alt`` as an alternative of element ``j`` when it differs from it materially."""
@@ -178,9 +183,7 @@ class CoarseElements:
 
     def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
         """An accepted element with the same images (mean gap < eps/2) or matrix (< DEFAULT_TOL)."""
-        x = self.geo.verts
-        imgs = torch.stack([e.images for e in self.elements])  # [G, S']
-        gap = (x[imgs] - x[images][None]).norm(dim=-1).mean(-1)  # [G]
+        gap = image_gaps(self.geo.verts, torch.stack([e.images for e in self.elements]), images)  # [G]
         j = int(gap.argmin())
         if float(gap[j]) < 0.5 * EPS_KLC:
             return j
@@ -294,7 +297,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     for i, e in enumerate(final):
         if e.distortion > max_distortion and coarse[i].distortion <= max_distortion and kf != k0:
             final[i] = from_map(geo.p2p(coarse[i].fmap))
-    replaced = []
+    replaced: list[int] = []
     for i, alts in sorted((alternatives or {}).items()):
         if final[i].distortion <= EXACT_ENOUGH * max_distortion:  # nothing left to gain
             continue
@@ -302,9 +305,10 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
             alt = grown(a)
             if alt.distortion < final[i].distortion:
                 final[i] = alt
-                replaced.append(i)
+                if i not in replaced:
+                    replaced.append(i)
     if replaced:
-        _remake_products(final, sorted(set(replaced)), geo, from_map)
+        _remake_products(final, replaced, geo, from_map)
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
     return [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0], rejected
 
@@ -314,18 +318,19 @@ def _remake_products(final: list[Element], replaced: list[int], geo: Geometry, f
     ``b∘a`` (vertex maps composed): where one is the same map as an element ``c`` (mean image gap on
     the score samples under half a KLC radius) and distorts less than it, it replaces ``c``
     (in place). Only products that name an element already found are made: no element is added."""
-    x, S = geo.verts, geo.score_samples
-    imgs = lambda: torch.stack([x[e.p2p[S]] for e in final])  # noqa: E731  [G, S', 3]
+    S = geo.score_samples
+    images = torch.stack([e.p2p[S] for e in final])  # [G, S'], kept in step with ``final``
     for i in replaced:
         a = final[i].p2p
         for j in range(1, len(final)):
             if j == i:
                 continue
             for prod in (a[final[j].p2p], final[j].p2p[a]):
-                gap = (imgs() - x[prod[S]][None]).norm(dim=-1).mean(-1)  # [G]
+                gap = image_gaps(geo.verts, images, prod[S])  # [G]
                 c = int(gap.argmin())
                 if c in (0, i) or float(gap[c]) >= 0.5 * EPS_KLC:
                     continue
                 cand = from_map(prod)
                 if cand.distortion < final[c].distortion:
                     final[c] = cand
+                    images[c] = prod[S]
