@@ -71,3 +71,27 @@ def test_involution_error_is_zero_for_an_involution_and_large_for_a_drift(mirror
     # a map that sends every vertex a quarter of the way round the list is no involution
     drift = torch.roll(torch.arange(len(v)), len(v) // 4)
     assert involution_error(fields, S, drift) > 1.0
+
+
+def test_the_worst_part_must_reach_part_samples(mirror3):
+    """A lone sample sent far off reads as the worst row at part=1 and is passed over at part=2;
+    half the shape kept in place (a wrong part over many samples) stays the worst at both."""
+    from symtorch.detect.verification import involution_distortion, isometry_score
+
+    v, f, mirror = mirror3
+    v = v / math.sqrt(GeodesicSolver(v, f).area)
+    solver = GeodesicSolver(v, f)
+    S = farthest_point_sampling(v, 24)
+    fields = solver.distances_from(S)
+    one_off = mirror.clone()
+    far = int(fields[0].argmax())  # the sample's image moved to the far end of the shape
+    one_off[S[0]] = far
+    alone = involution_distortion(fields, S, one_off, part=1).worst
+    passed = involution_distortion(fields, S, one_off, part=2).worst
+    assert alone > 1.5 > 0.5 > passed
+    assert isometry_score(solver, one_off, S, part=2).worst < 0.5 < isometry_score(solver, one_off, S).worst
+    x = v[:, 0] - v[:, 0].mean()
+    half = torch.where(x > 0, mirror, torch.arange(len(v)))
+    assert involution_distortion(fields, S, half, part=2).worst > 1.0
+    with pytest.raises(ValueError, match="part"):
+        involution_distortion(fields, S, mirror, part=0)

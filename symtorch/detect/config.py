@@ -16,8 +16,9 @@ __all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION
 #: Raised whenever the default detection's results change (a new stage, a new default): it is part
 #: of the cache key of ``symtorch.data.DetectSymmetries``, so that symmetries cached by an earlier
 #: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties;
-#: 3: the orientation-reversing functional-map candidate; 4: the group path's alternative elements.
-DETECTOR_REVISION = 4
+#: 3: the orientation-reversing functional-map candidate; 4: the group path's alternative elements;
+#: 5: the verification's worst part spans two samples (``ReflectionConfig.worst_part``).
+DETECTOR_REVISION = 5
 
 
 @dataclass(frozen=True)
@@ -49,8 +50,13 @@ class ReflectionConfig:
         n_verify: samples of the final verification.
         min_score: smallest confidence ``exp(-distortion^2)`` of a reported reflection.
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
-        max_worst: and no sample's mean distortion exceeds this (a map right on most of the shape
-            but wrong on one part is no symmetry).
+        max_worst: and no part of the map distorts by more than this (a map right on most of
+            the shape but wrong on one part is no symmetry): the ``worst_part``-th largest of the
+            ``n_verify`` samples' mean distortions stays below it.
+        worst_part: how many of the ``n_verify`` samples a wrong part must reach (1: any one).
+            2 (default): one lone sample whose image is off is a local error of the dense map,
+            not a wrong part (a point cloud's sheets that touch, two feet within a point
+            spacing, pull a few points across); a wrong limb covers several samples.
         max_descriptor_gap: and the map changes the descriptors by less than this
             (``descriptor_gap``).
         final_ratio: every candidate whose selection distortion is within this factor of the
@@ -97,6 +103,7 @@ class ReflectionConfig:
     min_score: float = 0.5
     max_vote: float = 0.2
     max_worst: float = 1.5
+    worst_part: int = 2
     max_descriptor_gap: float = 0.4
     final_ratio: float = 1.15
     final_vote_weight: float = 0.5
@@ -108,6 +115,8 @@ class ReflectionConfig:
     fmap_ratio: float = 1.5
 
     def __post_init__(self):
+        if self.worst_part < 1:
+            raise ValueError(f"worst_part must be at least 1, got {self.worst_part}")
         if self.verify not in ("involution", "images"):
             raise ValueError(f"verify must be 'involution' or 'images', got {self.verify!r}")
 

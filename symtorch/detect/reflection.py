@@ -396,9 +396,10 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
     lap("p2p")
     n = cfg.n_verify
     if cfg.verify == "involution":  # no solve: the samples' own fields, read at the images
-        d = involution_distortion(samples.fields()[:n], samples.samples[:n], p2p)
+        d = involution_distortion(samples.fields()[:n], samples.samples[:n], p2p, cfg.worst_part)
     else:
-        d = isometry_score(samples.solver, p2p, samples.samples[:n], source_dist=samples.pairwise(n))
+        d = isometry_score(samples.solver, p2p, samples.samples[:n], source_dist=samples.pairwise(n),
+                           part=cfg.worst_part)
     vote = float(orientation_vote(p2p, samples.verts, samples.normals, samples.vote_samples))
     gap = descriptor_gap(desc, p2p, samples.mass)
     inv = involution_error(samples.fields()[:n], samples.samples[:n], p2p)

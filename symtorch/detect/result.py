@@ -63,7 +63,7 @@ class Checks(NamedTuple):
 
     score: float             # exp(-distortion^2)
     distortion: float        # mean geodesic distortion, EPS_KLC units
-    worst_distortion: float  # largest per-sample mean distortion
+    worst_distortion: float  # per-sample mean distortion of the worst part (ReflectionConfig.worst_part)
     orientation: float       # orientation vote of the dense map (-1: reverses everywhere)
     descriptor_gap: float    # how much the map changes the descriptors
     accepted: bool
