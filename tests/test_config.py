@@ -36,7 +36,7 @@ def test_keyword_shortcuts_set_the_fields_they_name():
 def test_invalid_choices_are_refused():
     with pytest.raises(ValueError, match="verify must be"):
         ReflectionConfig(verify="both")
-    with pytest.raises(ValueError, match="worst_part must be at least 1"):
-        ReflectionConfig(worst_part=0)
+    with pytest.raises(ValueError, match="max_local_errors must be at least 0"):
+        ReflectionConfig(max_local_errors=-1)
     with pytest.raises(ValueError, match="refine must be"):
         GroupConfig(refine="lbfgs")

@@ -84,6 +84,50 @@ def test_guided_second_selection_runs_only_when_nothing_verifies(mirror3):
     assert off.diagnostics.reflection.guided is None
 
 
+def test_a_map_accepted_with_local_errors_keeps_its_place_against_an_equal_rival(mirror3, monkeypatch):
+    """A map that verifies only with a local error set aside: the second opinion's guided
+    upsampling of the same candidate is refined too; on a tie the first map stays and the guided
+    one is its second opinion."""
+    import symtorch.detect.reflection as reflection
+
+    v, f, mirror = mirror3
+    s = laplacian_spectrum(v, f, k=80)
+
+    def one_local_error(fields, samples, *args):
+        out = torch.zeros(len(samples), dtype=torch.bool)
+        out[0] = True
+        return out
+
+    monkeypatch.setattr(reflection, "local_errors", one_local_error)
+    res = detect_reflection(v, f, s)
+    d = res.diagnostics.reflection
+    assert d.checks.accepted and d.checks.local_errors == 1
+    assert d.guided is None and d.second_chosen is not None and d.agreement is not None
+    assert torch.equal(res.reflection.p2p, mirror)
+    off = detect_reflection(v, f, s, config=ReflectionConfig(max_local_errors=0))
+    assert off.diagnostics.reflection.checks.local_errors == 0
+
+
+def test_a_less_distorted_guided_map_replaces_one_accepted_with_local_errors(shared_data):
+    """TOSCA_Isometric cat3: the first selection's map verifies only with two local errors set
+    aside; the guided selection's map distorts half as much and is reported instead."""
+    from symtorch.eval import geodesic_errors, klc_rates
+    from symtorch.eval.benchmarks import list_benchmark, load_ground_truth, load_mesh
+
+    path = dict(list_benchmark("TOSCA_Isometric")).get("cat3")
+    if path is None or not path.exists():
+        pytest.skip("TOSCA_Isometric cat3 not found")
+    v, f = load_mesh(path)
+    s = laplacian_spectrum(v, f, k=110)
+    res = detect_reflection(torch.as_tensor(v), torch.as_tensor(f), s)
+    d = res.diagnostics.reflection
+    assert d.checks.accepted and d.checks.local_errors > 0, d.checks
+    assert d.guided is not None and d.guided.accepted and d.guided.distortion < d.checks.distortion, d
+    solver = GeodesicSolver(v, f)
+    errors = geodesic_errors(solver, res.reflection.p2p.numpy(), load_ground_truth("TOSCA_Isometric", "cat3").pairs)
+    assert float(klc_rates(errors, solver.area)) >= 0.9
+
+
 def test_nearly_as_consistent_candidates_are_all_compared():
     from symtorch.shapes import star_prism
 

@@ -73,25 +73,28 @@ def test_involution_error_is_zero_for_an_involution_and_large_for_a_drift(mirror
     assert involution_error(fields, S, drift) > 1.0
 
 
-def test_the_worst_part_must_reach_part_samples(mirror3):
-    """A lone sample sent far off reads as the worst row at part=1 and is passed over at part=2;
-    half the shape kept in place (a wrong part over many samples) stays the worst at both."""
-    from symtorch.detect.verification import involution_distortion, isometry_score
+def test_local_errors_set_aside_a_lone_wrong_image_not_a_wrong_part(mirror3):
+    """A sample sent to the far end of a symmetric shape is a local error (its true image fits the
+    other samples and keeps its descriptors): the worst row leaves it out. Half the shape kept in
+    place is a wrong part: more samples than the limit, the worst row stays large."""
+    from symtorch.descriptors import descriptors
+    from symtorch.detect.verification import involution_distortion, local_errors, standardized_descriptors
 
     v, f, mirror = mirror3
     v = v / math.sqrt(GeodesicSolver(v, f).area)
     solver = GeodesicSolver(v, f)
+    s = laplacian_spectrum(v, f, k=40)
+    z = standardized_descriptors(descriptors(s.evals, s.evecs))
     S = farthest_point_sampling(v, 24)
     fields = solver.distances_from(S)
     one_off = mirror.clone()
-    far = int(fields[0].argmax())  # the sample's image moved to the far end of the shape
-    one_off[S[0]] = far
-    alone = involution_distortion(fields, S, one_off, part=1).worst
-    passed = involution_distortion(fields, S, one_off, part=2).worst
-    assert alone > 1.5 > 0.5 > passed
-    assert isometry_score(solver, one_off, S, part=2).worst < 0.5 < isometry_score(solver, one_off, S).worst
+    one_off[S[0]] = int(fields[0].argmax())
+    skip = local_errors(fields, S, one_off, z, 1.5, 2, 3.0)
+    assert skip.tolist() == [True] + [False] * 23
+    assert involution_distortion(fields, S, one_off).worst > 1.5 > 0.5 > \
+        involution_distortion(fields, S, one_off, skip).worst
+    assert not local_errors(fields, S, mirror, z, 1.5, 2, 3.0).any()  # nothing to set aside
     x = v[:, 0] - v[:, 0].mean()
     half = torch.where(x > 0, mirror, torch.arange(len(v)))
-    assert involution_distortion(fields, S, half, part=2).worst > 1.0
-    with pytest.raises(ValueError, match="part"):
-        involution_distortion(fields, S, mirror, part=0)
+    skip = local_errors(fields, S, half, z, 0.5, 2, 3.0)
+    assert int(skip.sum()) <= 2 and involution_distortion(fields, S, half, skip).worst > 0.5

@@ -17,7 +17,7 @@ __all__ = ["ReflectionConfig", "GroupConfig", "DetectConfig", "LEGACY_REFLECTION
 #: of the cache key of ``symtorch.data.DetectSymmetries``, so that symmetries cached by an earlier
 #: detector are recomputed rather than trusted. 2: the final comparison of the selection's near-ties;
 #: 3: the orientation-reversing functional-map candidate; 4: the group path's alternative elements;
-#: 5: the verification's worst part spans two samples (``ReflectionConfig.worst_part``).
+#: 5: the verification sets local errors of the dense map aside (``ReflectionConfig.max_local_errors``).
 DETECTOR_REVISION = 5
 
 
@@ -50,13 +50,14 @@ class ReflectionConfig:
         n_verify: samples of the final verification.
         min_score: smallest confidence ``exp(-distortion^2)`` of a reported reflection.
         max_vote: a reported reflection's orientation vote is below ``-max_vote``.
-        max_worst: and no part of the map distorts by more than this (a map right on most of
-            the shape but wrong on one part is no symmetry): the ``worst_part``-th largest of the
-            ``n_verify`` samples' mean distortions stays below it.
-        worst_part: how many of the ``n_verify`` samples a wrong part must reach (1: any one).
-            2 (default): one lone sample whose image is off is a local error of the dense map,
-            not a wrong part (a point cloud's sheets that touch, two feet within a point
-            spacing, pull a few points across); a wrong limb covers several samples.
+        max_worst: and no sample's mean distortion exceeds this, local errors aside (a map right
+            on most of the shape but wrong on one part is no symmetry).
+        max_local_errors: at most this many of the worst verification samples may be set aside
+            as local errors of the dense map (``verification.local_errors``: another image fits
+            the other samples' distances and keeps the sample's descriptors; a point cloud's
+            touching sheets pull a few points of a right map across); 0: none.
+        local_error_z: the descriptor match of such an image (mean gap of the standardised
+            log-descriptors, in column spreads).
         max_descriptor_gap: and the map changes the descriptors by less than this
             (``descriptor_gap``).
         final_ratio: every candidate whose selection distortion is within this factor of the
@@ -103,7 +104,8 @@ class ReflectionConfig:
     min_score: float = 0.5
     max_vote: float = 0.2
     max_worst: float = 1.5
-    worst_part: int = 2
+    max_local_errors: int = 2
+    local_error_z: float = 3.0
     max_descriptor_gap: float = 0.4
     final_ratio: float = 1.15
     final_vote_weight: float = 0.5
@@ -115,8 +117,8 @@ class ReflectionConfig:
     fmap_ratio: float = 1.5
 
     def __post_init__(self):
-        if self.worst_part < 1:
-            raise ValueError(f"worst_part must be at least 1, got {self.worst_part}")
+        if self.max_local_errors < 0:
+            raise ValueError(f"max_local_errors must be at least 0, got {self.max_local_errors}")
         if self.verify not in ("involution", "images"):
             raise ValueError(f"verify must be 'involution' or 'images', got {self.verify!r}")
 

@@ -34,7 +34,9 @@ Pipeline; each stage is a function below and its seconds are kept under its name
    the candidates up to the one chosen, unrefined, and the share of the vote samples on which its
    map agrees with the reported one is the reflection's confidence (:mod:`.confidence`); where
    two near-symmetries compete (posed humans: arms swapped, each leg mirrored onto itself), the
-   two selections tend to part.
+   two selections tend to part. Where the reported map verified only with local errors of its
+   dense map set aside and the second opinion chose the same candidate, its guided upsampling is
+   refined too and replaces the map where it fits better (:func:`guided_rival`).
 
 The knobs are :class:`~symtorch.detect.config.ReflectionConfig`; why each default is what it is, with
 the measurements, is in ``BENCHMARKS.md`` and ``docs/notes/``.
@@ -67,12 +69,11 @@ from .fmap_candidate import reversing_fmap_candidate
 from .involutions import heat_extrema, involution_candidates
 from .result import Checks, Diagnostics, ReflectionDiagnostics, Symmetry, SymmetryResult, Trial
 from .verification import (descriptor_gap, involution_distortion, involution_error, isometry_score,
-                           orientation_vote, vertex_normals)
+                           local_errors, orientation_vote, standardized_descriptors, vertex_normals)
 
 __all__ = ["detect_reflection", "reflection_basis", "find_candidates", "candidate_fmaps",
            "select_candidate", "refine_and_verify", "fmap_finalist", "final_selection", "final_cost",
-           "second_opinion",
-           "map_agreement", "orientation_guide", "reflection_group", "Basis",
+           "second_opinion", "guided_rival", "map_agreement", "orientation_guide", "reflection_group", "Basis",
            "Candidates", "SampleSet", "Selection", "Refined"]
 
 
@@ -208,6 +209,11 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
             lap("second_opinion")
             other = second.fmap
             diag = replace(diag, second_chosen=second.chosen)
+            rival = guided_rival(found, pick, second, samples, cands.desc, basis, cfg, lap)
+            if rival is not None:
+                other, found = chosen.fmap, rival
+                diag = replace(diag, guided_trials=second.trials, guided_chosen=second.chosen,
+                               guided=rival.checks, second_chosen=None)
         if found.checks.accepted and other is not None:
             diag = replace(diag, agreement=map_agreement(samples, found.p2p, other))
     elif cfg.fmap_candidate:  # no extrema pairs: the functional-map candidate alone
@@ -395,18 +401,22 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
     p2p = samples.search()(Cf)
     lap("p2p")
     n = cfg.n_verify
+    skip = local_errors(samples.fields()[:n], samples.samples[:n], p2p, standardized_descriptors(desc),
+                        cfg.max_worst, cfg.max_local_errors, cfg.local_error_z) \
+        if cfg.max_local_errors > 0 else None
     if cfg.verify == "involution":  # no solve: the samples' own fields, read at the images
-        d = involution_distortion(samples.fields()[:n], samples.samples[:n], p2p, cfg.worst_part)
+        d = involution_distortion(samples.fields()[:n], samples.samples[:n], p2p, skip)
     else:
         d = isometry_score(samples.solver, p2p, samples.samples[:n], source_dist=samples.pairwise(n),
-                           part=cfg.worst_part)
+                           skip=skip)
     vote = float(orientation_vote(p2p, samples.verts, samples.normals, samples.vote_samples))
     gap = descriptor_gap(desc, p2p, samples.mass)
     inv = involution_error(samples.fields()[:n], samples.samples[:n], p2p)
     lap("verify")
     ok = d.score >= cfg.min_score and vote < -cfg.max_vote and d.worst < cfg.max_worst \
         and gap < cfg.max_descriptor_gap
-    return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok, inv))
+    n_local = int(skip.sum()) if skip is not None else 0
+    return Refined(Cf, p2p, Checks(d.score, d.distortion, d.worst, vote, gap, ok, inv, n_local))
 
 
 #: The (candidate, start) key of the functional-map candidate: it has no extrema permutation.
@@ -476,6 +486,23 @@ def final_cost(distortion: float, vote: float, vote_weight: float) -> float:
     """What the final stage minimises over the verified finalists: ``distortion + vote_weight *
     (1 + vote)`` (a reflection's orientation vote is -1; one limb mirrored onto itself is less)."""
     return distortion + vote_weight * (1.0 + vote)
+
+
+def guided_rival(found: Refined, pick: tuple[int, int], second: Selection, samples: SampleSet,
+                 desc: Tensor, basis: Basis, cfg: ReflectionConfig, lap) -> Refined | None:
+    """Stage 6 too: where the reported map verified only with local errors of its dense map set
+    aside (``verification.local_errors``) and the second opinion chose the same candidate, its
+    guided upsampling refined and verified; it replaces the reported map where it verifies and
+    costs less (:func:`final_cost`). None: the reported map stays. Another candidate is another
+    symmetry, which the selection already ranked lower: it is never a rival."""
+    if found.checks.local_errors == 0 or second.chosen[0] != pick[0]:
+        return None
+    rival = refine_and_verify(second.fmap, samples, desc, basis, cfg, lap)
+
+    def cost(r: Refined) -> float:
+        return final_cost(r.checks.distortion, r.checks.orientation, cfg.final_vote_weight)
+
+    return rival if rival.checks.accepted and cost(rival) < cost(found) else None
 
 
 def second_opinion(C0: Tensor, cands: Candidates, chosen: int, samples: SampleSet, basis: Basis,

@@ -63,16 +63,17 @@ class Checks(NamedTuple):
 
     score: float             # exp(-distortion^2)
     distortion: float        # mean geodesic distortion, EPS_KLC units
-    worst_distortion: float  # per-sample mean distortion of the worst part (ReflectionConfig.worst_part)
+    worst_distortion: float  # largest per-sample mean distortion, local errors of the map aside
     orientation: float       # orientation vote of the dense map (-1: reverses everywhere)
     descriptor_gap: float    # how much the map changes the descriptors
     accepted: bool
     involution_error: float = math.nan  # mean d(s, g(g(s))) over the samples, EPS_KLC units
+    local_errors: int = 0    # samples left out of worst_distortion (verification.local_errors)
 
     def to_dict(self) -> dict[str, float]:
         return {"distortion": self.distortion, "worst_distortion": self.worst_distortion,
                 "orientation": self.orientation, "descriptor_gap": self.descriptor_gap,
-                "involution_error": self.involution_error}
+                "involution_error": self.involution_error, "local_errors": self.local_errors}
 
 
 @dataclass(frozen=True)

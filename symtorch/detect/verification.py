@@ -20,8 +20,8 @@ from ..geodesics import GeodesicSolver
 from ..orientation import vertex_normals
 from ..units import EPS_KLC
 
-__all__ = ["Distortion", "isometry_score", "involution_distortion", "involution_error", "descriptor_gap",
-           "vertex_normals", "orientation_vote"]
+__all__ = ["Distortion", "isometry_score", "involution_distortion", "local_errors", "involution_error",
+           "descriptor_gap", "standardized_descriptors", "vertex_normals", "orientation_vote"]
 
 
 class Distortion(NamedTuple):
@@ -30,8 +30,8 @@ class Distortion(NamedTuple):
     Attributes:
         score: confidence ``exp(-distortion^2)`` in [0, 1].
         distortion: mean over sample pairs, in EPS_KLC units.
-        worst: the ``part``-th largest per-sample mean (the largest by default): a map good on
-            most of the shape but wrong on one part of it has a small ``distortion`` and a large
+        worst: the largest per-sample mean (over the samples not skipped): a map good on most
+            of the shape but wrong on one part of it has a small ``distortion`` and a large
             ``worst``.
     """
 
@@ -40,18 +40,18 @@ class Distortion(NamedTuple):
     worst: float
 
 
-def _distortion(err: np.ndarray, part: int = 1) -> Distortion:
-    """``err`` [n, n]: per-pair disagreement in EPS_KLC units; ``worst`` is the ``part``-th largest
-    per-sample mean."""
-    if part < 1:
-        raise ValueError(f"part must be at least 1, got {part}")
+def _distortion(err: np.ndarray, skip: Tensor | None = None) -> Distortion:
+    """``err`` [n, n]: per-pair disagreement in EPS_KLC units; ``skip`` [n] bool: samples left out
+    of ``worst`` (:func:`local_errors`)."""
     distortion = float(err.mean())
-    rows = np.sort(err.mean(1))
-    return Distortion(math.exp(-distortion ** 2), distortion, float(rows[-min(part, len(rows))]))
+    rows = err.mean(1)
+    if skip is not None and bool(np.asarray(skip).any()) and not bool(np.asarray(skip).all()):
+        rows = rows[~np.asarray(skip)]
+    return Distortion(math.exp(-distortion ** 2), distortion, float(rows.max()))
 
 
 def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor,
-                   source_dist: Tensor | None = None, part: int = 1) -> Distortion:
+                   source_dist: Tensor | None = None, skip: Tensor | None = None) -> Distortion:
     """Confidence that ``p2p`` is an isometry, from geodesic distortion among sample points.
 
     distortion = mean over sample pairs of ``|d(g(s_i), g(s_j)) - d(s_i, s_j)|`` on the unit-area
@@ -63,15 +63,15 @@ def isometry_score(solver: GeodesicSolver, p2p: Tensor, samples: Tensor,
         p2p: [V] the map; samples: [n] vertex ids.
         source_dist: [n, n] ``solver.pairwise(samples)``, when several maps are scored on one
             sample set (each call then solves only from the images).
-        part: ``worst`` is the ``part``-th largest per-sample mean: a wrong part of the map
-            counts once it reaches that many samples.
+        skip: [n] bool, samples ``worst`` leaves out (:func:`local_errors`).
     """
     D0 = solver.pairwise(samples) if source_dist is None else source_dist
     D1 = solver.pairwise(p2p[samples])
-    return _distortion(np.asarray((D1 - D0).abs()) / EPS_KLC, part)
+    return _distortion(np.asarray((D1 - D0).abs()) / EPS_KLC, skip)
 
 
-def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor, part: int = 1) -> Distortion:
+def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor,
+                          skip: Tensor | None = None) -> Distortion:
     """:func:`isometry_score` for a map that should be an isometric involution, with no solve per map.
 
     For an isometry ``g`` with ``g∘g = id``, ``d(s_i, g(s_j)) = d(g(s_i), g(g(s_j))) = d(g(s_i), s_j)``:
@@ -81,10 +81,47 @@ def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor, part: in
 
     Args:
         fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n] vertex ids;
-        p2p: [V] the map; part: as in :func:`isometry_score`.
+        p2p: [V] the map; skip: as in :func:`isometry_score`.
     """
     X = fields[:, p2p[samples]]  # [n, n]
-    return _distortion(to_numpy((X - X.mT).abs()) / EPS_KLC, part)
+    return _distortion(to_numpy((X - X.mT).abs()) / EPS_KLC, skip)
+
+
+def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, z: Tensor, max_worst: float,
+                 limit: int, max_z: float) -> Tensor:
+    """The samples where the dense map alone is wrong, not the shape's symmetry: [n] bool.
+
+    A sample ``s_i`` whose row of ``involution_distortion`` exceeds ``max_worst`` is a *local
+    error* when another image fits it: some vertex ``y`` whose distances to the samples match
+    ``d(s_i, g(s_j))`` (``g`` is an involution: ``d(y, s_j) = d(s_i, g(s_j))`` for the true image
+    ``y = g(s_i)``) to within ``max_worst`` on average, and whose descriptors match the sample's
+    (``z``: standardised log-descriptors, :func:`standardized_descriptors`; mean column gap below
+    ``max_z``). Where the shape itself is asymmetric (a bump on one side), the point that fits the
+    distances is a smooth patch whose descriptors differ. On a point cloud, where two sheets touch
+    (the soles of two feet), a few points of a right map are pulled across and fixed there.
+    At most ``limit`` of the worst samples are examined: a wrong part of the map (a limb mirrored
+    onto itself) covers more of them.
+
+    Args:
+        fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n];
+        p2p: [V] the map; z: [V, D].
+    """
+    X = fields[:, p2p[samples]]  # [n, n]: d(s_i, g(s_j))
+    rows = (X - X.mT).abs().mean(1) / EPS_KLC
+    out = torch.zeros(len(samples), dtype=torch.bool)
+    order = torch.argsort(rows, descending=True)[:limit]
+    for i in order[rows[order] > max_worst].tolist():
+        others = torch.arange(len(samples)) != i
+        fit = (fields[others] - X[i, others, None]).abs().mean(0) / EPS_KLC  # [V]
+        y = int(fit.argmin())
+        out[i] = bool(fit[y] < max_worst) and float((z[samples[i]] - z[y]).abs().mean()) < max_z
+    return out
+
+
+def standardized_descriptors(desc: Tensor) -> Tensor:
+    """[V, D] log-descriptors standardised per column (units of each column's spread)."""
+    L = torch.log(desc.clamp_min(1e-12))
+    return (L - L.mean(0)) / L.std(0).clamp_min(1e-12)
 
 
 def involution_error(fields: Tensor, samples: Tensor, p2p: Tensor) -> float:
@@ -116,8 +153,7 @@ def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
     Args:
         desc: [V, D] positive descriptors (``descriptors``); p2p: [V]; mass: [V].
     """
-    L = torch.log(desc.clamp_min(1e-12))
-    Z = (L - L.mean(0)) / L.std(0).clamp_min(1e-12)
+    Z = standardized_descriptors(desc)
     per_vertex = (Z - Z[p2p]).abs().mean(1)
     return float((mass * per_vertex).sum() / mass.sum())
 
