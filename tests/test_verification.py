@@ -78,23 +78,23 @@ def test_local_errors_set_aside_a_lone_wrong_image_not_a_wrong_part(mirror3):
     other samples and keeps its descriptors): the worst row leaves it out. Half the shape kept in
     place is a wrong part: more samples than the limit, the worst row stays large."""
     from symtorch.descriptors import descriptors
-    from symtorch.detect.verification import involution_distortion, local_errors, standardized_descriptors
+    from symtorch.detect.verification import involution_distortion, local_errors
 
     v, f, mirror = mirror3
     v = v / math.sqrt(GeodesicSolver(v, f).area)
     solver = GeodesicSolver(v, f)
     s = laplacian_spectrum(v, f, k=40)
-    z = standardized_descriptors(descriptors(s.evals, s.evecs))
+    desc = descriptors(s.evals, s.evecs)
     S = farthest_point_sampling(v, 24)
     fields = solver.distances_from(S)
     one_off = mirror.clone()
     one_off[S[0]] = int(fields[0].argmax())
-    skip = local_errors(fields, S, one_off, z, 1.5, 2, 3.0)
+    skip = local_errors(fields, S, one_off, desc, 1.5, 2, 3.0)
     assert skip.tolist() == [True] + [False] * 23
     assert involution_distortion(fields, S, one_off).worst > 1.5 > 0.5 > \
         involution_distortion(fields, S, one_off, skip).worst
-    assert not local_errors(fields, S, mirror, z, 1.5, 2, 3.0).any()  # nothing to set aside
+    assert not local_errors(fields, S, mirror, desc, 1.5, 2, 3.0).any()  # nothing to set aside
     x = v[:, 0] - v[:, 0].mean()
     half = torch.where(x > 0, mirror, torch.arange(len(v)))
-    skip = local_errors(fields, S, half, z, 0.5, 2, 3.0)
+    skip = local_errors(fields, S, half, desc, 0.5, 2, 3.0)
     assert int(skip.sum()) <= 2 and involution_distortion(fields, S, half, skip).worst > 0.5

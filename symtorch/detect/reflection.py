@@ -69,7 +69,7 @@ from .fmap_candidate import reversing_fmap_candidate
 from .involutions import heat_extrema, involution_candidates
 from .result import Checks, Diagnostics, ReflectionDiagnostics, Symmetry, SymmetryResult, Trial
 from .verification import (descriptor_gap, involution_distortion, involution_error, isometry_score,
-                           local_errors, orientation_vote, standardized_descriptors, vertex_normals)
+                           local_errors, orientation_vote, vertex_normals)
 
 __all__ = ["detect_reflection", "reflection_basis", "find_candidates", "candidate_fmaps",
            "select_candidate", "refine_and_verify", "fmap_finalist", "final_selection", "final_cost",
@@ -401,9 +401,8 @@ def refine_and_verify(Cs: Tensor, samples: SampleSet, desc: Tensor, basis: Basis
     p2p = samples.search()(Cf)
     lap("p2p")
     n = cfg.n_verify
-    skip = local_errors(samples.fields()[:n], samples.samples[:n], p2p, standardized_descriptors(desc),
-                        cfg.max_worst, cfg.max_local_errors, cfg.local_error_z) \
-        if cfg.max_local_errors > 0 else None
+    skip = local_errors(samples.fields()[:n], samples.samples[:n], p2p, desc, cfg.max_worst,
+                        cfg.max_local_errors, cfg.local_error_z) if cfg.max_local_errors > 0 else None
     if cfg.verify == "involution":  # no solve: the samples' own fields, read at the images
         d = involution_distortion(samples.fields()[:n], samples.samples[:n], p2p, skip)
     else:
@@ -469,14 +468,11 @@ def final_selection(chosen: Selection, found: Refined, samples: SampleSet, desc:
     finalists = chosen.finalists(cfg.final_ratio) + list(extra)
     if len(finalists) < 2:
         return chosen.chosen, found, [chosen.chosen]
-
-    def cost(r: Refined) -> float:
-        return final_cost(r.checks.distortion, r.checks.orientation, cfg.final_vote_weight)
-
     best = (chosen.chosen, found)
     for key, Cs in finalists[1:]:
         other = refine_and_verify(Cs, samples, desc, basis, cfg, lambda stage: None)
-        if other.checks.accepted and (not best[1].checks.accepted or cost(other) < cost(best[1])):
+        if other.checks.accepted and (not best[1].checks.accepted
+                                      or refined_cost(other, cfg) < refined_cost(best[1], cfg)):
             best = (key, other)
     lap("final")
     return best[0], best[1], [key for key, _ in finalists]
@@ -488,6 +484,11 @@ def final_cost(distortion: float, vote: float, vote_weight: float) -> float:
     return distortion + vote_weight * (1.0 + vote)
 
 
+def refined_cost(r: Refined, cfg: ReflectionConfig) -> float:
+    """:func:`final_cost` of a refined, verified map."""
+    return final_cost(r.checks.distortion, r.checks.orientation, cfg.final_vote_weight)
+
+
 def guided_rival(found: Refined, pick: tuple[int, int], second: Selection, samples: SampleSet,
                  desc: Tensor, basis: Basis, cfg: ReflectionConfig, lap) -> Refined | None:
     """Stage 6 too: where the reported map verified only with local errors of its dense map set
@@ -497,12 +498,9 @@ def guided_rival(found: Refined, pick: tuple[int, int], second: Selection, sampl
     symmetry, which the selection already ranked lower: it is never a rival."""
     if found.checks.local_errors == 0 or second.chosen[0] != pick[0]:
         return None
-    rival = refine_and_verify(second.fmap, samples, desc, basis, cfg, lap)
-
-    def cost(r: Refined) -> float:
-        return final_cost(r.checks.distortion, r.checks.orientation, cfg.final_vote_weight)
-
-    return rival if rival.checks.accepted and cost(rival) < cost(found) else None
+    rival = refine_and_verify(second.fmap, samples, desc, basis, cfg, lambda stage: None)
+    lap("guided_rival")
+    return rival if rival.checks.accepted and refined_cost(rival, cfg) < refined_cost(found, cfg) else None
 
 
 def second_opinion(C0: Tensor, cands: Candidates, chosen: int, samples: SampleSet, basis: Basis,

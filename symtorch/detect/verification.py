@@ -45,8 +45,9 @@ def _distortion(err: np.ndarray, skip: Tensor | None = None) -> Distortion:
     of ``worst`` (:func:`local_errors`)."""
     distortion = float(err.mean())
     rows = err.mean(1)
-    if skip is not None and bool(np.asarray(skip).any()) and not bool(np.asarray(skip).all()):
-        rows = rows[~np.asarray(skip)]
+    keep = None if skip is None else ~np.asarray(skip)
+    if keep is not None and keep.any():  # every sample skipped: none is left out
+        rows = rows[keep]
     return Distortion(math.exp(-distortion ** 2), distortion, float(rows.max()))
 
 
@@ -87,7 +88,7 @@ def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor,
     return _distortion(to_numpy((X - X.mT).abs()) / EPS_KLC, skip)
 
 
-def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, z: Tensor, max_worst: float,
+def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, desc: Tensor, max_worst: float,
                  limit: int, max_z: float) -> Tensor:
     """The samples where the dense map alone is wrong, not the shape's symmetry: [n] bool.
 
@@ -95,22 +96,25 @@ def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, z: Tensor, max_wo
     error* when another image fits it: some vertex ``y`` whose distances to the samples match
     ``d(s_i, g(s_j))`` (``g`` is an involution: ``d(y, s_j) = d(s_i, g(s_j))`` for the true image
     ``y = g(s_i)``) to within ``max_worst`` on average, and whose descriptors match the sample's
-    (``z``: standardised log-descriptors, :func:`standardized_descriptors`; mean column gap below
-    ``max_z``). Where the shape itself is asymmetric (a bump on one side), the point that fits the
-    distances is a smooth patch whose descriptors differ. On a point cloud, where two sheets touch
+    (standardised log-descriptors, :func:`standardized_descriptors`, computed only where some row
+    exceeds ``max_worst``; mean column gap below ``max_z``). Where the shape itself is asymmetric
+    (a bump on one side), the point that fits the distances is a smooth patch whose descriptors
+    differ. On a point cloud, where two sheets touch
     (the soles of two feet), a few points of a right map are pulled across and fixed there.
     At most ``limit`` of the worst samples are examined: a wrong part of the map (a limb mirrored
     onto itself) covers more of them.
 
     Args:
         fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n];
-        p2p: [V] the map; z: [V, D].
+        p2p: [V] the map; desc: [V, D] positive descriptors (as for :func:`descriptor_gap`).
     """
     X = fields[:, p2p[samples]]  # [n, n]: d(s_i, g(s_j))
     rows = (X - X.mT).abs().mean(1) / EPS_KLC
     out = torch.zeros(len(samples), dtype=torch.bool)
     order = torch.argsort(rows, descending=True)[:limit]
-    for i in order[rows[order] > max_worst].tolist():
+    flagged = order[rows[order] > max_worst].tolist()
+    z = standardized_descriptors(desc) if flagged else None
+    for i in flagged:
         others = torch.arange(len(samples)) != i
         fit = (fields[others] - X[i, others, None]).abs().mean(0) / EPS_KLC  # [V]
         y = int(fit.argmin())
