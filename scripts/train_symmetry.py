@@ -324,10 +324,8 @@ def train(run: str, data: list[dict], pairs: list[tuple[int, int]], args) -> Mat
 #: part-wise vote (``--parts``), symmetric feature averaging (each shape's features and its
 #: mirror image's read through the shape's reflection, :func:`symtorch.tta.symmetrized_features`),
 #: and ZoomOut (:func:`symtorch.zoomout.zoomout`, to ``--zoomout-k`` eigenfunctions) after the plain
-#: map and after mirror test-time averaging; ``+tta+szo``: the latter kept commuting with the two
-#: shapes' reflections at every step (``zoomout(..., symmetries=...)``; plain ZoomOut where a shape
-#: has none).
-POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta", "+zo", "+tta+zo", "+tta+szo")
+#: map and after mirror test-time averaging.
+POSTS = ("", "+resolve", "+parts", "+tta", "+tta+parts", "+stta", "+zo", "+tta+zo")
 
 
 @torch.no_grad()
@@ -377,11 +375,6 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
             for post, C_post in (("+zo", C), ("+tta+zo", C_tta)):
                 maps[post] = zoomout(C_post.double(), x["evecs"].double(), y["evecs"].double(),
                                      y["mass"].double(), args.zoomout_k).p2p
-            r_x, r_y = reflection_index(x), reflection_index(y)
-            sym = None if r_x is None or r_y is None else (x["sym_fmap"][r_x].double(),
-                                                           y["sym_fmap"][r_y].double())
-            maps["+tta+szo"] = zoomout(C_tta.double(), x["evecs"].double(), y["evecs"].double(),
-                                       y["mass"].double(), args.zoomout_k, symmetries=sym).p2p
         if args.parts:
             maps.update({"+parts": parts(p2p, j, x, y), "+tta+parts": parts(p2p_tta, j, x, y)})
         for post, m in maps.items():

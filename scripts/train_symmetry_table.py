@@ -27,8 +27,7 @@ def by_seed(rows: dict, pipeline: str) -> None:
     mean flipped share). The ``+zo`` columns (after ZoomOut) are compared with ``baseline+zo``: a
     refinement any network's maps get is not counted as the symmetry's gain."""
     cols = ("baseline", "baseline+resolve", "baseline+tta", "baseline+stta", "augment", "augment+tta",
-            "augment+stta", "symmetrize", "symmetrize+tta", "baseline+zo", "symmetrize+tta+zo",
-            "symmetrize+tta+szo")
+            "augment+stta", "symmetrize", "symmetrize+tta", "baseline+zo", "symmetrize+tta+zo")
     cols = tuple(c for c in cols if any(k[2] == c for k in rows))
     print("| setting | seed | " + " | ".join(cols) + " |")
     print("|---|---:|" + "---:|" * len(cols))

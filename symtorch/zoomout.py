@@ -8,13 +8,6 @@ bases, which is why the field reports it as a test-time refinement beside the pl
 ULRSSM). It keeps whichever side the map sends each part to: it sharpens a map, it does not turn a
 flipped one around (that is :func:`symtorch.orientation.resolve_symmetry_p2p`'s job).
 
-With the two shapes' reflections (``symmetries=(S_x, S_y)``) every step keeps the map *commuting*
-with them: a correspondence between two shapes of one class sends the left side of one to the left
-side of the other, ``T ∘ R_y = R_x ∘ T``, so under the pull-back ``C S_x = S_y C``. After each
-step the matrix is replaced by the average of itself and its conjugate, ``(C + S_y C S_x) / 2``
-(the orthogonal projection onto the commuting matrices when the ``S`` are orthogonal involutions):
-the map and its mirror-conjugate, two estimates of one correspondence, are refined as one.
-
 Conventions as :mod:`symtorch.maps`: ``C_xy [K_y, K_x]`` is the pull-back of the vertex map
 ``p2p_yx`` (for each vertex of y its image on x): ``evecs_y @ C_xy ≈ evecs_x[p2p_yx]``. The refinement
 of a *symmetry* matrix, which must stay block-diagonal and orthogonal, is
@@ -37,7 +30,7 @@ class ZoomOutResult(NamedTuple):
 
 
 def zoomout(C: Tensor, evecs_x: Tensor, evecs_y: Tensor, mass_y: Tensor, k_final: int,
-            *, step: int = 4, symmetries: tuple[Tensor, Tensor] | None = None) -> ZoomOutResult:
+            *, step: int = 4) -> ZoomOutResult:
     """Grow ``C [k, k]`` to ``[k_final, k_final]``, ``step`` eigenfunctions at a time.
 
     Each step: ``p2p = NN(evecs_y[:, :k] @ C, evecs_x[:, :k])``, then ``C`` the pull-back of ``p2p`` in
@@ -50,13 +43,9 @@ def zoomout(C: Tensor, evecs_x: Tensor, evecs_y: Tensor, mass_y: Tensor, k_final
         mass_y: [V_y] lumped mass of y.
         k_final: basis size at the end.
         step: eigenfunctions added per step (ZoomOut's 1 is the most precise and the slowest).
-        symmetries: optional ``(S_x [K_x', K_x'], S_y [K_y', K_y'])``, the reflections' pull-back
-            matrices (``sym_fmap`` of a sample), both at least ``k_final`` large: each step's matrix
-            is made to commute with them (module doc).
 
     Raises:
-        ValueError: a non-square ``C``, a basis or a reflection matrix shorter than ``k_final``,
-            or ``step < 1``.
+        ValueError: a non-square ``C``, a basis shorter than ``k_final``, or ``step < 1``.
     """
     k = C.shape[-1]
     if C.dim() != 2 or C.shape[0] != k:
@@ -66,25 +55,9 @@ def zoomout(C: Tensor, evecs_x: Tensor, evecs_y: Tensor, mass_y: Tensor, k_final
                          f"{min(evecs_x.shape[1], evecs_y.shape[1])} eigenfunctions")
     if step < 1:
         raise ValueError(f"step must be at least 1, got {step}")
-    if symmetries is not None:
-        S_x, S_y = symmetries
-        if min(S_x.shape[-1], S_y.shape[-1]) < k_final:
-            raise ValueError(f"the reflection matrices ({list(S_x.shape)}, {list(S_y.shape)}) must "
-                             f"have at least k_final={k_final} rows and columns")
-        C = commuting_part(C, S_x, S_y)
     while k < k_final:
         k_next = min(k + step, k_final)
         p2p = fmap_to_p2p(C, evecs_x[:, :k], evecs_y[:, :k])
         C = p2p_to_fmap(p2p, evecs_x[:, :k_next], mass_y, evecs_src=evecs_y[:, :k_next])
-        if symmetries is not None:
-            C = commuting_part(C, S_x, S_y)
         k = k_next
     return ZoomOutResult(C, fmap_to_p2p(C, evecs_x[:, :k], evecs_y[:, :k]))
-
-
-def commuting_part(C: Tensor, S_x: Tensor, S_y: Tensor) -> Tensor:
-    """``(C + S_y C S_x) / 2``: ``C [k_y, k_x]`` made to commute with the reflections' pull-backs
-    (their leading ``[k_x, k_x]`` / ``[k_y, k_y]`` blocks; the truncation of a pull-back matrix is the
-    pull-back in the smaller basis)."""
-    ky, kx = C.shape[-2:]
-    return 0.5 * (C + S_y[:ky, :ky].to(C) @ C @ S_x[:kx, :kx].to(C))
