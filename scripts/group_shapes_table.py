@@ -2,6 +2,8 @@
 
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py              # every GROUP_SHAPES row + chiral 8 arms
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py arms chiral  # rows whose name contains a word
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --partners
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group desc_tol=1.0
 
 The shapes are ``tests/shapes.py``'s ``GROUP_SHAPES`` (what ``tests/test_group_shapes.py`` checks)
 and the chiral eight arms (``tests/test_group_path.py``). Per shape, as the tests score it:
@@ -9,22 +11,35 @@ and the chiral eight arms (``tests/test_group_path.py``). Per shape, as the test
 matched within sqrt(area / (20 pi)) on >= 95 % of 100 evenly spaced vertices and the spurious ones
 (``eval.groups.element_rates``), the warnings, the median distortion of the group path's rotations
 and of its orientation-reversing elements (``diagnostics.group.distortion``, EPS_KLC), and the
-wall and CPU seconds of the detection.
+wall and CPU seconds of the detection. ``--bend R`` bends the rows chosen around a cylinder of
+radius R instead of their own; ``--group KEY=VALUE`` sets a ``GroupConfig`` field; ``--partners``
+adds, per shape, how the group path's descriptor gate (``candidates.partner_mask``) treats the true
+partners among its invariant points: the largest descriptor ratio of a point and its image under a
+true element (``candidates.descriptor_ratios``; the gate admits a pair up to ``desc_tol``), and the
+share of those pairs it cuts.
 """
 from __future__ import annotations
 
+import argparse
+import json
 import statistics
 import sys
 import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the shape builders
 from shapes import GROUP_SHAPES, armed_ball, bend  # noqa: E402
 
-from symtorch import detect_symmetries  # noqa: E402
+from symtorch import detect_symmetries, laplacian_spectrum  # noqa: E402
+from symtorch.descriptors import descriptors  # noqa: E402
+from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
+from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
+from symtorch.detect.group_path import invariant_point_set  # noqa: E402
+from symtorch.units import EPS_KLC  # noqa: E402
 from symtorch.eval.groups import element_rates  # noqa: E402
 from symtorch.geodesics import GeodesicSolver  # noqa: E402
 from symtorch.shapes import symmetry_maps  # noqa: E402
@@ -36,20 +51,49 @@ def _median(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3f}" if xs else "–"
 
 
+def partner_ratios(v, f, true_maps: np.ndarray, cfg: GroupConfig) -> np.ndarray:
+    """Descriptor ratios of every (point, image) pair of the group path's invariant points under the
+    true elements, where the image lands within one KLC radius of another point."""
+    spectrum = laplacian_spectrum(torch.as_tensor(v), torch.as_tensor(f), k=cfg.n_eigen)
+    verts_unit = np.asarray(v, dtype=np.float64) * spectrum.scale
+    pts = invariant_point_set(spectrum, f, verts_unit, GeodesicSolver(verts_unit, f), cfg.n_points)
+    P, fields = np.asarray(pts.points), pts.fields.numpy()
+    ratio = descriptor_ratios(descriptors(spectrum.evals, spectrum.evecs)[P])
+    out = []
+    for g in true_maps:
+        near = fields[:, g[P]].argmin(0)  # [n] the point nearest to each image
+        ok = (fields[near, g[P]] < EPS_KLC) & (near != np.arange(len(P)))
+        out += ratio[np.flatnonzero(ok), near[ok]].tolist()
+    return np.asarray(out)
+
+
 def main() -> None:
-    words = sys.argv[1:]
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("words", nargs="*", help="only the rows whose name contains one of these")
+    ap.add_argument("--bend", type=float, default=None, help="bend radius of the rows chosen (0: flat)")
+    ap.add_argument("--group", nargs="*", default=[], metavar="KEY=VALUE", help="GroupConfig fields")
+    ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
+    args = ap.parse_args()
+    knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
+    cfg = DetectConfig(group=GroupConfig(**knobs))
     torch.set_num_threads(1)
-    print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s |")
-    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|")
+    extra = " | partners' largest ratio (cut, desc_tol) |" if args.partners else " |"
+    print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s" + extra)
+    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else ""))
     for name, build, group, order, radius in SHAPES:
-        if words and not any(w in name for w in words):
+        if args.words and not any(w in name for w in args.words):
             continue
+        radius = radius if args.bend is None else args.bend
         v0, f, mats = build()
         v = bend(v0, radius) if radius else v0
+        if radius and "bent" not in name:
+            name = f"{name} bent R={radius:g}"
+        elif radius:
+            name = f"{name} R={radius:g}"
         t0, c0 = time.perf_counter(), time.process_time()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            res = detect_symmetries(v, f)
+            res = detect_symmetries(v, f, config=cfg)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         sc, _ = element_rates(GeodesicSolver(v, f), symmetry_maps(v0, mats), res.p2ps)
         g = res.diagnostics.group
@@ -59,7 +103,12 @@ def main() -> None:
                 (mir if r else rot).append(d)
         print(f"| {name} | {len(v)} | {group} ({order}) | {res.group.name} ({res.group.order}) | "
               f"{sc.found}/{order} | {sc.spurious} | {len(caught)} | {_median(rot)} / {_median(mir)} | "
-              f"{wall:.1f} | {cpu:.1f} |", flush=True)
+              f"{wall:.1f} | {cpu:.1f} |", end="", flush=True)
+        if args.partners:
+            r = partner_ratios(v, f, symmetry_maps(v0, mats), cfg.group)
+            print(f" {r.max():.2f} ({100 * (r > cfg.group.desc_tol).mean():.0f} %, {cfg.group.desc_tol:g}) |"
+                  if len(r) else " – |", end="")
+        print(flush=True)
 
 
 if __name__ == "__main__":

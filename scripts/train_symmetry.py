@@ -383,11 +383,28 @@ def evaluate(model: Matcher, data: list[dict], pairs: list[tuple[int, int]], arg
     return {post: summarize_pairs(v) for post, v in scores.items()}
 
 
+@torch.no_grad()
+def ground_truth_floor(data: list[dict], pairs: list[tuple[int, int]], args, evaluator) -> dict:
+    """Scores of the ground truth's own ``--k`` functional map converted like a network's (plain and
+    after ZoomOut to ``--zoomout-k``): the floor of the protocol in that basis."""
+    k, scores = args.k, {"": [], "+zo": []}
+    for i, j in pairs:
+        x, y = data[i], data[j]
+        C = gt_fmap(x, y, k).double()
+        scores[""].append(evaluator.score(fmap_to_p2p(C, x["evecs"][:, :k].double(),
+                                                      y["evecs"][:, :k].double()), x, y))
+        if args.zoomout_k > 0:
+            scores["+zo"].append(evaluator.score(zoomout(C, x["evecs"].double(), y["evecs"].double(),
+                                                         y["mass"].double(), args.zoomout_k).p2p, x, y))
+    return {post: summarize_pairs(v) for post, v in scores.items() if v}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--dataset", choices=["FAUST", "TOSCA_Isometric", "SCAPE_r"], default="FAUST")
     ap.add_argument("--regime", choices=["full", "quarter"], default="full")
-    ap.add_argument("--runs", nargs="+", choices=RUNS, default=list(RUNS))
+    ap.add_argument("--runs", nargs="*", choices=RUNS, default=list(RUNS),
+                    help="the runs (none: with --floor, the floor alone)")
     ap.add_argument("--input", choices=["wks", "xyz"], default="wks")
     ap.add_argument("--symmetries", choices=["ground-truth", "detect", "consensus"], default="ground-truth",
                     help="the shapes' reflections: from the .sym.vts ground truth, detected, or detected "
@@ -433,6 +450,9 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="append the result rows to this file")
     ap.add_argument("--per-pair", type=Path, default=None,
                     help="append each held-out pair's scores (per run and post-process) to this file")
+    ap.add_argument("--floor", action="store_true",
+                    help="also score the ground truth's own functional map (--k, and after ZoomOut): "
+                         "the best any network's map in this basis can do under this protocol")
     args = ap.parse_args()
     if args.zoomout_k is None:
         args.zoomout_k = args.k_spectrum
@@ -495,6 +515,12 @@ def main() -> None:
              f"({len(test_pairs)} pairs scored)")
     evaluator = CorrespondenceEvaluator(n_points=args.n_points)
     rows = []
+    if args.floor:
+        floor = ground_truth_floor(data_test, test_pairs, args, evaluator)
+        for post, res in floor.items():
+            print(f"{args.dataset:15s} {args.regime:7s} {'ground-truth' + post:17s} error {res.mean:.4f}  "
+                  f"flipped {100 * res.flipped_share:5.1f}%  [{len(res.pairs)} pairs; the basis's floor]",
+                  flush=True)
     for run in args.runs:
         t1 = time.perf_counter()
         tag = "" if run == "baseline" else f"_{args.symmetries}"  # the baseline uses no symmetry

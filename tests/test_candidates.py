@@ -6,7 +6,8 @@ from scipy.spatial import cKDTree
 
 from symtorch import shapes
 from symtorch.units import EPS_KLC
-from symtorch.detect.candidates import candidate_tuples, invariant_points, source_tuples
+from symtorch.detect.candidates import (candidate_tuples, descriptor_ratios, invariant_points, partner_mask,
+                                       source_tuples)
 from symtorch.spectrum import laplacian_spectrum
 
 
@@ -53,3 +54,24 @@ def test_source_tuples_are_spread_distinct_and_prefer_usable_points():
     usable = np.zeros(12, dtype=bool)
     usable[[1, 3, 5, 7, 9]] = True
     assert all(set(t) <= {1, 3, 5, 7, 9} for t in source_tuples(dist, 4, 3, usable))
+
+
+def test_descriptor_ratios_are_shares_of_the_median_pair_and_gate_the_partners():
+    import torch
+
+    g = np.random.default_rng(0)
+    base = np.exp(g.normal(size=(4, 6)))
+    # points 0/1 and 2/3 are partners (equal descriptors); 4 and 5 stand apart
+    desc = torch.as_tensor(np.concatenate([base[[0, 0, 1, 1]], base[2:4]]))
+    r = descriptor_ratios(desc)
+    n = len(desc)
+    assert r.shape == (n, n) and np.allclose(r, r.T) and np.allclose(np.diag(r), 0)
+    assert np.isclose(np.median(r[~np.eye(n, dtype=bool)]), 1.0)
+    assert r[0, 1] < 1e-9 and r[2, 3] < 1e-9 and r[0, 2] > 0.1
+    dist = np.ones((n, n)) - np.eye(n)  # every point the same distance profile
+    allowed = partner_mask(desc, dist, 0.6)
+    assert allowed[0, 1] and allowed[2, 3] and not allowed[0, 2]
+    assert (allowed == (r <= 0.6)).all()
+    # identical descriptors everywhere: the median is 0 and only exact matches pass
+    same = descriptor_ratios(torch.ones(3, 4))
+    assert (same == 0).all()

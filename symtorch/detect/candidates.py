@@ -22,7 +22,7 @@ from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
 
-__all__ = ["invariant_points", "partner_mask", "Pinning", "source_tuples", "candidate_tuples", "tuple_pairs",
+__all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples", "candidate_tuples", "tuple_pairs",
            "TuplePairs"]
 
 
@@ -226,6 +226,23 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
     return part, total
 
 
+def descriptor_ratios(desc: Tensor) -> np.ndarray:
+    """[n, n] distances between the points' standardised multi-scale log-descriptors, as a share of
+    their median over all pairs of distinct points (what :func:`partner_mask` compares with
+    ``desc_tol``; 0 on the diagonal).
+
+    Args:
+        desc: [n, D] positive descriptors of the points.
+    """
+    n = len(desc)
+    logd = torch.log(desc.clamp_min(1e-12))
+    logd = logd / logd.std(0, keepdim=True).clamp_min(1e-12)
+    dd = torch.cdist(logd, logd).numpy()
+    off = dd[~np.eye(n, dtype=bool)]
+    scale = float(np.median(off)) if off.size else 0.0
+    return dd / scale if scale > 0 else np.where(dd > 1e-9, np.inf, 0.0)
+
+
 def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float) -> np.ndarray:
     """[n, n] bool: which points of ``P`` may be the image of which.
 
@@ -239,11 +256,7 @@ def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float) -> np.ndarray:
         desc: [n, D] positive descriptors of the points; dist: [n, n] geodesic distances among them.
     """
     n = len(dist)
-    logd = torch.log(desc.clamp_min(1e-12))
-    logd = logd / logd.std(0, keepdim=True).clamp_min(1e-12)
-    dd = torch.cdist(logd, logd).numpy()
-    off = dd[~np.eye(n, dtype=bool)]
-    allowed = dd <= max(desc_tol * float(np.median(off)) if off.size else 0.0, 1e-9)
+    allowed = descriptor_ratios(desc) <= desc_tol
     prof = np.sort(dist, 1)
     pd = np.abs(prof[:, None, :] - prof[None, :, :])
     profile_agrees = np.median(pd, -1) <= 0.5 * EPS_KLC + 0.05 * np.median(prof[:, 1:], 1)[:, None]
