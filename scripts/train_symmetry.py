@@ -125,14 +125,16 @@ def pairs_of(indices: list[int], names: list[str], within_class: bool) -> list[t
             if i != j and (not within_class or class_key(names[i]) == class_key(names[j]))]
 
 
-def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth") -> Compose:
+def pre_transform(k: int, n_wks: int, symmetries: str = "ground-truth", on_uncertain: str = "keep") -> Compose:
     """What is cached per shape: unit area, spectrum, WKS, the symmetries, the WKS orientation
     operators (Ren et al. 2018) and DiffusionNet's gradient operator.
 
     ``symmetries="ground-truth"`` builds the reflection from the dataset's symmetric ground truth
-    (``.sym.vts``, :class:`~symtorch.data.SymmetryFromCorrespondence`); ``"detect"`` runs the detector.
+    (``.sym.vts``, :class:`~symtorch.data.SymmetryFromCorrespondence`); ``"detect"`` runs the detector
+    (``on_uncertain="drop"``: a shape whose reflection the detector reports as uncertain gets none).
     """
-    sym = SymmetryFromCorrespondence() if symmetries == "ground-truth" else DetectSymmetries()
+    sym = (SymmetryFromCorrespondence() if symmetries == "ground-truth"
+           else DetectSymmetries(on_uncertain=on_uncertain))
     return Compose([NormalizeArea(), ComputeSpectrum(k=k), ComputeDescriptors(n_hks=0, n_wks=n_wks),
                     sym, ComputeOrientationOperators(), ComputeGradientOperator()])
 
@@ -410,6 +412,9 @@ def main() -> None:
                     help="the shapes' reflections: from the .sym.vts ground truth, detected, or detected "
                          "and, on the training shapes, voted into one through their correspondences "
                          "(symtorch.data.consensus; the held-out shapes keep their detected ones)")
+    ap.add_argument("--on-uncertain", choices=["keep", "drop"], default="keep",
+                    help="detected symmetries (--symmetries detect, --test-symmetries detect): 'drop' "
+                         "gives a shape whose reflection the detector reports as uncertain none")
     ap.add_argument("--test-symmetries", choices=["ground-truth", "detect"], default=None,
                     help="the held-out shapes' reflections, where they differ from --symmetries "
                          "(e.g. trained with detected ones, tested with the ground truth's: what the "
@@ -463,8 +468,10 @@ def main() -> None:
     root = dataset_root(args.dataset, args.scape_r)
     t0 = time.perf_counter()
     source = "detect" if args.symmetries == "consensus" else args.symmetries
-    ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, source),
-                                 processed_dir=args.cache / f"{args.dataset}-{source}")
+    drop = "-drop" if args.on_uncertain == "drop" else ""
+    ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, source, args.on_uncertain),
+                                 processed_dir=args.cache / f"{args.dataset}-{source}"
+                                 f"{drop if source == 'detect' else ''}")
     data = [ds[i] for i in range(len(ds))]
     names = [s["name"] for s in data]
     log.info(f"{args.dataset}: {len(data)} shapes, precompute/load {time.perf_counter() - t0:.0f} s")
@@ -476,8 +483,10 @@ def main() -> None:
     args.test_symmetries = args.test_symmetries or args.symmetries
     data_test = data
     if args.test_symmetries != args.symmetries:
-        ds_t = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, args.test_symmetries),
-                                       processed_dir=args.cache / f"{args.dataset}-{args.test_symmetries}")
+        ds_t = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, args.test_symmetries,
+                                                           args.on_uncertain),
+                                       processed_dir=args.cache / f"{args.dataset}-{args.test_symmetries}"
+                                       f"{drop if args.test_symmetries == 'detect' else ''}")
         data_test = [ds_t[i] for i in range(len(ds_t))]
         if [s["name"] for s in data_test] != names:
             raise SystemExit("error: the two symmetry sources list different shapes")
@@ -523,7 +532,7 @@ def main() -> None:
                   flush=True)
     for run in args.runs:
         t1 = time.perf_counter()
-        tag = "" if run == "baseline" else f"_{args.symmetries}"  # the baseline uses no symmetry
+        tag = "" if run == "baseline" else f"_{args.symmetries}{drop}"  # the baseline uses no symmetry
         if run != "baseline" and args.mirror == "pair":
             tag = "_pair"
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"
@@ -545,6 +554,7 @@ def main() -> None:
                 run_name += f"-d{args.max_distortion:g}"
             row = dict(dataset=args.dataset, regime=args.regime, input=args.input, run=run_name + post,
                        symmetries=args.symmetries, test_symmetries=args.test_symmetries,
+                       on_uncertain=args.on_uncertain,
                        schedule=args.schedule,
                        max_distortion=args.max_distortion,
                        n_train=len(train_idx), n_pairs=len(res.pairs), error=res.mean,
