@@ -83,13 +83,11 @@ def main() -> None:
     for name, build, group, order, radius in SHAPES:
         if args.words and not any(w in name for w in args.words):
             continue
-        radius = radius if args.bend is None else args.bend
+        if args.bend is not None:
+            radius = args.bend
+            name = f"{name.removesuffix('_bent')} bent R={radius:g}" if radius else f"{name} flat"
         v0, f, mats = build()
         v = bend(v0, radius) if radius else v0
-        if radius and "bent" not in name:
-            name = f"{name} bent R={radius:g}"
-        elif radius:
-            name = f"{name} R={radius:g}"
         t0, c0 = time.perf_counter(), time.process_time()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")

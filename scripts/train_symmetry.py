@@ -468,10 +468,11 @@ def main() -> None:
     root = dataset_root(args.dataset, args.scape_r)
     t0 = time.perf_counter()
     source = "detect" if args.symmetries == "consensus" else args.symmetries
-    drop = "-drop" if args.on_uncertain == "drop" else ""
+    def drop(symmetries: str) -> str:  # detected reflections, uncertain ones dropped: their own cache
+        return "-drop" if args.on_uncertain == "drop" and symmetries in ("detect", "consensus") else ""
+
     ds = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, source, args.on_uncertain),
-                                 processed_dir=args.cache / f"{args.dataset}-{source}"
-                                 f"{drop if source == 'detect' else ''}")
+                                 processed_dir=args.cache / f"{args.dataset}-{source}{drop(source)}")
     data = [ds[i] for i in range(len(ds))]
     names = [s["name"] for s in data]
     log.info(f"{args.dataset}: {len(data)} shapes, precompute/load {time.perf_counter() - t0:.0f} s")
@@ -486,7 +487,7 @@ def main() -> None:
         ds_t = MeshDataset.from_layout(root, pre_transform(args.k_spectrum, args.n_wks, args.test_symmetries,
                                                            args.on_uncertain),
                                        processed_dir=args.cache / f"{args.dataset}-{args.test_symmetries}"
-                                       f"{drop if args.test_symmetries == 'detect' else ''}")
+                                       f"{drop(args.test_symmetries)}")
         data_test = [ds_t[i] for i in range(len(ds_t))]
         if [s["name"] for s in data_test] != names:
             raise SystemExit("error: the two symmetry sources list different shapes")
@@ -532,7 +533,7 @@ def main() -> None:
                   flush=True)
     for run in args.runs:
         t1 = time.perf_counter()
-        tag = "" if run == "baseline" else f"_{args.symmetries}{drop}"  # the baseline uses no symmetry
+        tag = "" if run == "baseline" else f"_{args.symmetries}{drop(args.symmetries)}"  # baseline: none
         if run != "baseline" and args.mirror == "pair":
             tag = "_pair"
         saved = args.cache / "models" / (f"{args.dataset}_{args.regime}_{args.input}_{run}{tag}_s{args.seed}"

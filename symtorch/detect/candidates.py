@@ -21,9 +21,10 @@ from torch import Tensor
 from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
+from .verification import standardized_descriptors
 
-__all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples", "candidate_tuples", "tuple_pairs",
-           "TuplePairs"]
+__all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
+           "candidate_tuples", "tuple_pairs", "TuplePairs"]
 
 
 def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
@@ -235,9 +236,8 @@ def descriptor_ratios(desc: Tensor) -> np.ndarray:
         desc: [n, D] positive descriptors of the points.
     """
     n = len(desc)
-    logd = torch.log(desc.clamp_min(1e-12))
-    logd = logd / logd.std(0, keepdim=True).clamp_min(1e-12)
-    dd = torch.cdist(logd, logd).numpy()
+    z = standardized_descriptors(desc)
+    dd = torch.cdist(z, z).numpy()
     off = dd[~np.eye(n, dtype=bool)]
     scale = float(np.median(off)) if off.size else 0.0
     return dd / scale if scale > 0 else np.where(dd > 1e-9, np.inf, 0.0)

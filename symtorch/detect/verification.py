@@ -84,8 +84,14 @@ def involution_distortion(fields: Tensor, samples: Tensor, p2p: Tensor,
         fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n] vertex ids;
         p2p: [V] the map; skip: as in :func:`isometry_score`.
     """
-    X = fields[:, p2p[samples]]  # [n, n]
-    return _distortion(to_numpy((X - X.mT).abs()) / EPS_KLC, skip)
+    _, err = _involution_disagreement(fields, samples, p2p)
+    return _distortion(to_numpy(err), skip)
+
+
+def _involution_disagreement(fields: Tensor, samples: Tensor, p2p: Tensor) -> tuple[Tensor, Tensor]:
+    """``X [n, n] = d(s_i, g(s_j))`` read off the samples' fields, and ``|X - X.T| / EPS_KLC``."""
+    X = fields[:, p2p[samples]]
+    return X, (X - X.mT).abs() / EPS_KLC
 
 
 def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, desc: Tensor, max_worst: float,
@@ -108,8 +114,8 @@ def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, desc: Tensor, max
         fields: [n, V] geodesic distances from ``samples`` (unit-area shape); samples: [n];
         p2p: [V] the map; desc: [V, D] positive descriptors (as for :func:`descriptor_gap`).
     """
-    X = fields[:, p2p[samples]]  # [n, n]: d(s_i, g(s_j))
-    rows = (X - X.mT).abs().mean(1) / EPS_KLC
+    X, err = _involution_disagreement(fields, samples, p2p)
+    rows = err.mean(1)
     out = torch.zeros(len(samples), dtype=torch.bool)
     order = torch.argsort(rows, descending=True)[:limit]
     flagged = order[rows[order] > max_worst].tolist()
