@@ -107,6 +107,10 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
     0.40 s solve of 110 pairs at 12.5K vertices with CHOLMOD (0.2 s of 0.7 s with SuperLU).
     True / False: always / never.
 
+    The Lanczos basis holds ``1.5 k`` vectors (ARPACK's default is ``2 k``): at ``k = 110`` each
+    restart then costs fewer back-substitutions than the larger basis saves in restarts (the
+    eigenvalues agree to 1e-11; ``scripts/bench_spectrum.py``).
+
     Returns:
         (evals [k] ascending, evecs [V, k] mass-orthonormal) numpy float64.
     """
@@ -123,7 +127,7 @@ def generalized_eigsh(W: sp.spmatrix, mass: np.ndarray, k: int, *, shift: float 
             lu = SPDFactor(W - sigma * M, prefer=solver)
             op = sla.LinearOperator((V, V), matvec=lu.solve, dtype=np.float64)
             evals, evecs = sla.eigsh(W, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=tol,
-                                     v0=v0)
+                                     v0=v0, ncv=min(V, k + max(k // 2, 20)))
             break
         except (RuntimeError, sla.ArpackError, sla.ArpackNoConvergence) as err:
             last_err = err

@@ -122,7 +122,8 @@ def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectr
     spectrum = spectrum.to("cpu")  # the geometry is solved on the host; the result goes back
     timer.lap("spectrum")
     # one factorisation for both paths (the timer counts it in the first path's first stage)
-    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, surface)
+    solver = GeodesicSolver(np.asarray(verts, dtype=np.float64) * spectrum.scale, surface,
+                            backend=cfg.geodesics)
     result = _run_policy(verts, faces, spectrum, mode, cfg, solver, timer, batch_device)
     result = in_basis(result, spectrum, band_boundary(solved_bands(spectrum.evals), cfg.k_refine))
     result = mark_uncertain(result, cfg.min_confidence)

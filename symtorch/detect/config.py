@@ -202,6 +202,10 @@ class DetectConfig:
             :mod:`.confidence`) is below this is marked ``uncertain``. Chosen on SCAPE and TOSCA
             (``scripts/confidence_stats.py``): the centre of the range of thresholds that flag the
             same maps there; FAUST and TOSCA_Isometric were held out.
+        geodesics: the heat-method backend of the detection's distances
+            (:class:`~symtorch.geodesics.GeodesicSolver` ``backend``): ``"batched"``, a block of
+            sources per solve on the mesh's cotan operators, or ``"potpourri3d"`` (its robust
+            intrinsic-Delaunay solver, one source at a time). Point clouds always use potpourri3d.
         reflection: the reflection path's knobs.
         group: the group path's knobs.
     """
@@ -213,6 +217,7 @@ class DetectConfig:
     group_tol: float = 0.06
     cloud_min_cos: float | None = 0.0
     min_confidence: float = 0.37
+    geodesics: str = "batched"
     reflection: ReflectionConfig = field(default_factory=ReflectionConfig)
     group: GroupConfig = field(default_factory=GroupConfig)
 

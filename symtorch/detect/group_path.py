@@ -187,7 +187,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     spectrum = _at_most(spectrum.to("cpu"), cfg.n_eigen)
     basis = group_basis(spectrum.evals, k, k_refine, cfg.refine)
     verts_unit = np.asarray(verts, dtype=np.float64) * spectrum.scale
-    solver = GeodesicSolver(verts_unit, faces) if solver is None else solver
+    solver = GeodesicSolver(verts_unit, faces, backend="batched") if solver is None else solver
     diag = GroupDiagnostics(k0=basis.k0, k_refine=basis.k_refine, m=basis.m,
                             bands0=[len(b) for b in basis.bands0])
 

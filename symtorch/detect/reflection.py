@@ -168,7 +168,7 @@ def detect_reflection(verts, faces, spectrum: Spectrum, *, k: int | tuple[int, .
     basis = reflection_basis(spectrum.evals, k, cfg.k_select, k_refine, cfg.prune_k)
     V = spectrum.evecs.shape[0]
     verts_unit = torch.as_tensor(verts) * spectrum.scale
-    solver = GeodesicSolver(verts_unit, faces) if solver is None else solver
+    solver = GeodesicSolver(verts_unit, faces, backend="batched") if solver is None else solver
     cands = find_candidates(spectrum, faces, solver, cfg)
     lap("candidates")
     diag = ReflectionDiagnostics(
