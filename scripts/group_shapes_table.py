@@ -58,7 +58,9 @@ def partner_ratios(v, f, true_maps: np.ndarray, cfg: GroupConfig) -> np.ndarray:
     verts_unit = np.asarray(v, dtype=np.float64) * spectrum.scale
     pts = invariant_point_set(spectrum, f, verts_unit, GeodesicSolver(verts_unit, f), cfg.n_points)
     P, fields = np.asarray(pts.points), pts.fields.numpy()
-    ratio = descriptor_ratios(descriptors(spectrum.evals, spectrum.evecs)[P])
+    desc = descriptors(spectrum.evals, spectrum.evecs)
+    near = (desc, pts.fields <= cfg.partner_radius * EPS_KLC) if cfg.partner_radius > 0 else None
+    ratio = descriptor_ratios(desc[P], near)
     out = []
     for g in true_maps:
         near = fields[:, g[P]].argmin(0)  # [n] the point nearest to each image

@@ -75,3 +75,26 @@ def test_descriptor_ratios_are_shares_of_the_median_pair_and_gate_the_partners()
     # identical descriptors everywhere: the median is 0 and only exact matches pass
     same = descriptor_ratios(torch.ones(3, 4))
     assert (same == 0).all()
+
+
+def test_descriptor_ratios_look_around_a_point_displaced_along_its_ridge():
+    import torch
+
+    g = np.random.default_rng(1)
+    base = np.exp(g.normal(size=(5, 6)))
+    # vertices 0..4 are the points; point 1 is the partner of point 0 but sits one vertex off the
+    # spot that matches it (vertex 5, next to 1, carries point 0's descriptors)
+    desc_all = torch.as_tensor(np.concatenate([base[[0]], base[[1]] * 3.0, base[2:5], base[[0]]]))
+    P = np.arange(5)
+    mask = torch.zeros(5, 6, dtype=torch.bool)
+    mask[P, P] = True
+    plain = descriptor_ratios(desc_all[P])
+    assert np.allclose(descriptor_ratios(desc_all[P], (desc_all, mask)), plain)  # only themselves
+    mask[1, 5] = True
+    near = descriptor_ratios(desc_all[P], (desc_all, mask))
+    assert plain[0, 1] > 0.5 and near[0, 1] < 1e-9 and near[1, 0] < 1e-9  # symmetric
+    rest = [0, 2, 3, 4]  # pairs without point 1 do not look at vertex 5
+    assert (near <= plain + 1e-12).all() and np.allclose(near[np.ix_(rest, rest)], plain[np.ix_(rest, rest)])
+    dist = np.ones((5, 5)) - np.eye(5)
+    assert partner_mask(desc_all[P], dist, 0.3, (desc_all, mask))[0, 1]
+    assert not partner_mask(desc_all[P], dist, 0.3)[0, 1]

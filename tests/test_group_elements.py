@@ -1,7 +1,9 @@
 """symtorch.detect.group_elements: batched ICP, refinement and verification of the group path's elements."""
+import numpy as np
 import torch
 
 from symtorch import shapes
+from symtorch.units import EPS_KLC
 
 
 def test_batched_icp_on_device(device):
@@ -66,8 +68,8 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
 
     coarse = [CoarseElement(torch.eye(k0, dtype=s.evecs.dtype), geo.score_samples.clone(), 0.0)]
     coarse += [coarse_of(noisy.get(j, fm[j])) for j in range(1, len(true))]
-    plain, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0)
-    fixed, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0, {a: [coarse_of(fm[a])]})
+    plain, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0)
+    fixed, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 10.0, {a: [coarse_of(fm[a])]})
 
     def error(p2p, j):  # mean distance to the true image (unit-area shape)
         return float((geo.verts[p2p] - geo.verts[true[j]]).norm(dim=1).mean())
@@ -78,3 +80,48 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
     assert any(bool((fixed[c].p2p == p).all()) for p in (fixed[a].p2p[fixed[b].p2p], fixed[b].p2p[fixed[a].p2p]))
     assert [float(e.distortion) for i, e in enumerate(fixed) if i not in (a, c)] == \
         [float(e.distortion) for i, e in enumerate(plain) if i not in (a, c)]
+
+
+def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
+    """The table's C4v given as its four rotations, with one mirror as a coarse duplicate of the
+    identity (as the crude coarse maps of a bent slab's cap swaps read): upsampling finds it is an
+    element of its own, appends it and closes the vertex maps into all eight; an alternative that
+    is the same map as an element (the identity again) is not appended."""
+    from symtorch.detect.group_elements import CoarseElement, Geometry, upsample_elements
+    from symtorch.geodesics import GeodesicSolver
+    from symtorch.maps import p2p_to_fmap
+    from symtorch.procrustes import block_project
+    from symtorch.sampling import farthest_point_sampling
+    from symtorch.spectrum import band_boundary, laplacian_spectrum, solved_bands
+
+    v, f = shapes.table(3)
+    s = laplacian_spectrum(v, f, k=40)
+    bands = solved_bands(s.evals)
+    k0 = band_boundary(bands, 24)
+    bands0 = [b for b in bands if b.stop <= k0]
+    vu = v * s.scale
+    solver = GeodesicSolver(vu, f)
+    points = farthest_point_sampling(torch.as_tensor(vu), 8)
+    geo = Geometry(vu, s, points.numpy(), solver.distances_from(points.numpy()).double(), n_samples=300)
+    mats = shapes.true_symmetries("table")
+    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, mats)]
+    fm = [block_project(p2p_to_fmap(p, s.evecs[:, :k0], s.mass), bands0) for p in true]
+    rot = [j for j, M in enumerate(mats) if np.linalg.det(M) > 0]
+    mirror = next(j for j, M in enumerate(mats) if np.linalg.det(M) < 0)
+
+    def coarse_of(C):
+        return CoarseElement(C, geo.p2p(C, geo.score_samples), 0.1)
+
+    # at k0 = kf = 24 the quarter turns read ~0.32 (no refined basis to grow into): screen at 0.5
+    eye = CoarseElement(torch.eye(k0, dtype=s.evecs.dtype), geo.score_samples.clone(), 0.0)
+    coarse = [eye] + [coarse_of(fm[j]) for j in rot if j != 0]
+    plain, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5)
+    assert len(plain) == 4
+    same, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5, {0: [coarse_of(fm[0])]})
+    assert len(same) == 4
+    whole, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5, {0: [coarse_of(fm[mirror])]})
+    assert len(whole) == 8
+    assert bool((whole[0].p2p == torch.arange(len(v))).all())  # the identity stays first
+    for p in true:  # every true element is found once, within a vertex or two
+        gaps = torch.stack([(geo.verts[e.p2p] - geo.verts[p]).norm(dim=1).mean() for e in whole])
+        assert int((gaps < 0.5 * EPS_KLC).sum()) == 1, gaps.tolist()

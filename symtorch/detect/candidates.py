@@ -21,7 +21,6 @@ from torch import Tensor
 from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
-from .verification import standardized_descriptors
 
 __all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
            "candidate_tuples", "tuple_pairs", "TuplePairs"]
@@ -227,36 +226,53 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
     return part, total
 
 
-def descriptor_ratios(desc: Tensor) -> np.ndarray:
+def descriptor_ratios(desc: Tensor, near: tuple[Tensor, Tensor] | None = None) -> np.ndarray:
     """[n, n] distances between the points' standardised multi-scale log-descriptors, as a share of
     their median over all pairs of distinct points (what :func:`partner_mask` compares with
     ``desc_tol``; 0 on the diagonal).
 
+    An extremum on a ridge or a flat cap is only placed up to the ridge: a near-isometry (a bend)
+    moves it along the ridge, so that orbit partners sit at slightly different spots and their own
+    descriptors differ, although the symmetry maps each onto a vertex next to the other. With
+    ``near``, the distance of ``i`` to ``j`` is the smallest over the vertices around ``j`` (and of
+    ``j`` to those around ``i``), each standardised like the points.
+
     Args:
         desc: [n, D] positive descriptors of the points.
+        near: optional ``(desc_all [V, D], mask [n, V] bool)``: every vertex's descriptors, and the
+            vertices around each point (each point's own vertex among them).
     """
     n = len(desc)
-    z = standardized_descriptors(desc)
+    L = torch.log(desc.clamp_min(1e-12))
+    mu, sd = L.mean(0), L.std(0).clamp_min(1e-12)
+    z = (L - mu) / sd  # standardized_descriptors(desc)
     dd = torch.cdist(z, z).numpy()
     off = dd[~np.eye(n, dtype=bool)]
     scale = float(np.median(off)) if off.size else 0.0
+    if near is not None:
+        z_all = (torch.log(near[0].clamp_min(1e-12)) - mu) / sd  # [V, D]
+        around = np.stack([torch.cdist(z, z_all[near[1][j]]).min(1).values.numpy() for j in range(n)], 1)
+        dd = np.minimum(dd, np.minimum(around, around.T))
     return dd / scale if scale > 0 else np.where(dd > 1e-9, np.inf, 0.0)
 
 
-def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float) -> np.ndarray:
+def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float,
+                 near: tuple[Tensor, Tensor] | None = None) -> np.ndarray:
     """[n, n] bool: which points of ``P`` may be the image of which.
 
     Two points may correspond when their standardised multi-scale log-descriptors lie within
     ``desc_tol`` times the median distance of all pairs of points (exact mirror partners have
-    identical descriptors, so the scale is the spread of all pairs), and when their sorted geodesic
+    identical descriptors, so the scale is the spread of all pairs; with ``near``, up to where the
+    extremum sits on its ridge: :func:`descriptor_ratios`), and when their sorted geodesic
     distances to all of ``P`` agree (equal for orbit partners when ``P`` is invariant) to within
     ``0.5 eps`` plus 5 % of a typical distance. Every point may be its own image.
 
     Args:
-        desc: [n, D] positive descriptors of the points; dist: [n, n] geodesic distances among them.
+        desc: [n, D] positive descriptors of the points; dist: [n, n] geodesic distances among them;
+        near: as for :func:`descriptor_ratios`.
     """
     n = len(dist)
-    allowed = descriptor_ratios(desc) <= desc_tol
+    allowed = descriptor_ratios(desc, near) <= desc_tol
     prof = np.sort(dist, 1)
     pd = np.abs(prof[:, None, :] - prof[None, :, :])
     profile_agrees = np.median(pd, -1) <= 0.5 * EPS_KLC + 0.05 * np.median(prof[:, 1:], 1)[:, None]

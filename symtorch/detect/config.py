@@ -138,6 +138,9 @@ class GroupConfig:
         delta: geodesic ratio threshold of the pruning.
         desc_tol: two points may correspond when their descriptor distance is at most this share
             of the median distance over all pairs of points.
+        partner_radius: ... up to where each point sits within this many KLC radii (an extremum
+            on a ridge moves along it under a near-isometry: ``candidates.descriptor_ratios``);
+            0: the points' own descriptors only.
         max_candidates: most candidates kept for clustering (those whose Procrustes fit is best).
         n_icp: batched spectral ICP steps applied to every candidate before clustering (0: none).
         bandwidth: mean-shift kernel width (absolute Frobenius distance of the coarse matrices).
@@ -156,6 +159,7 @@ class GroupConfig:
     n_sources: int = 3
     delta: float = 0.9
     desc_tol: float = 0.6
+    partner_radius: float = 0.25
     max_candidates: int = 400
     n_icp: int = 3
     bandwidth: float = 0.6

@@ -9,7 +9,9 @@ exact measure:
   under composition and what closure adds goes through the same screen.
 - **Exact** (:func:`upsample_elements`): each distinct element is grown to the refined basis,
   every vertex is mapped, and the distortion ``|d(g(s), g(x)) - d(s, x)|`` is measured from 10
-  spread sources ``s`` to the score samples ``x`` (10 heat solves per element).
+  spread sources ``s`` to the score samples ``x`` (10 heat solves per element). A coarse duplicate
+  kept as an alternative that the refined basis tells apart from every element joins as one more;
+  the vertex maps are then closed under composition, each new product measured the same way.
 
 The cheap screen uses only the distance fields of the invariant points ``P``: the mean over
 ``p in P`` and the score samples ``x`` of ``|d(pi(p), g(x)) - d(p, x)| - off(p)`` (clamped at 0),
@@ -173,8 +175,9 @@ class CoarseElements:
         return float(image_gaps(self.geo.verts, a[None], b)[0])
 
     def _keep_alternative(self, j: int, alt: CoarseElement) -> None:
-        """Keep ``alt`` as an alternative of element ``j`` when it differs from it materially."""
-        if j == 0 or self.cfg.n_alternatives <= 0:
+        """Keep ``alt`` as an alternative of element ``j`` when it differs from it materially (an
+        alternative of the identity can only be another element: :func:`upsample_elements`)."""
+        if self.cfg.n_alternatives <= 0:
             return
         if self.image_gap(alt.images, self.elements[j].images) < self.cfg.alternative_gap * EPS_KLC:
             return
@@ -251,10 +254,18 @@ class CoarseElements:
 EXACT_ENOUGH = 0.1
 
 
+class Upsampled(NamedTuple):
+    """What :func:`upsample_elements` returns."""
+
+    elements: list[Element]  # the elements kept, identity first
+    rejected: list[float]    # the rejected elements' distortions
+    closed: bool             # whether the vertex maps are closed under composition, where checked
+
+
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
                       bands: list[range], k0: int, kf: int, max_distortion: float,
                       alternatives: dict[int, list[CoarseElement]] | None = None,
-                      ) -> tuple[list[Element], list[float]]:
+                      close: bool = False) -> Upsampled:
     """Grow the coarse elements to ``kf``, map every vertex and measure each exactly.
 
     An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
@@ -263,10 +274,11 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     distorts by at most ``EXACT_ENOUGH * max_distortion``), and replaces the element where it
     distorts less; the products that a replaced element takes part in are then re-made from
     it (:func:`_remake_products`), since the element they were closed from was the wrong version.
-    Elements still above ``max_distortion`` are dropped, the identity never.
-
-    Returns:
-        (the elements kept, identity first; the rejected elements' distortions).
+    An alternative that is not the same map as any element once refined is an element of its own
+    (:func:`_add_distinct`); the vertex maps are then closed under composition (:func:`_close_maps`),
+    as they are with ``close`` (the coarse closure did not end closed: its matrices may have been
+    too crude to compose where the exact maps are not). Elements still above ``max_distortion``
+    are dropped, the identity never.
     """
     src = geo.samples[:10].numpy()
     D_src = torch.as_tensor(np.asarray(solver.distances_from(src)))[:, geo.score_samples]
@@ -298,19 +310,87 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
         if e.distortion > max_distortion and coarse[i].distortion <= max_distortion and kf != k0:
             final[i] = from_map(geo.p2p(coarse[i].fmap))
     replaced: list[int] = []
+    distinct: list[Element] = []
     for i, alts in sorted((alternatives or {}).items()):
-        if final[i].distortion <= EXACT_ENOUGH * max_distortion:  # nothing left to gain
+        exact = final[i].distortion <= EXACT_ENOUGH * max_distortion
+        if exact and i != 0:  # nothing left to gain
             continue
         for a in alts:
             alt = grown(a)
-            if alt.distortion < final[i].distortion:
+            if i != 0 and alt.distortion < final[i].distortion:
                 final[i] = alt
                 if i not in replaced:
                     replaced.append(i)
+            elif alt.distortion <= max_distortion:
+                distinct.append(alt)
     if replaced:
         _remake_products(final, replaced, geo, from_map)
+    added = bool(distinct) and _add_distinct(final, distinct, geo, max_distortion)
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
-    return [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0], rejected
+    final = [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0]
+    closed = _close_maps(final, geo, from_map, max_distortion) if added or close else True
+    return Upsampled(final, rejected, closed)
+
+
+def _is_new(final: list[Element], p2p: Tensor, geo: Geometry) -> bool:
+    """Whether a vertex map lands, on the score samples, at least half a KLC radius (mean) from
+    every element's: the coarse stage's same-map test, on exact maps."""
+    S = geo.score_samples
+    gap = image_gaps(geo.verts, torch.stack([e.p2p[S] for e in final]), p2p[S])
+    return float(gap.min()) >= 0.5 * EPS_KLC
+
+
+def _add_distinct(final: list[Element], candidates: list[Element], geo: Geometry,
+                  max_distortion: float) -> bool:
+    """Append the candidates that upsampling made into elements of their own (in place).
+
+    A coarse duplicate can be a *different* element whose coarse map was too crude to tell: on a
+    bent thin slab the coarse maps of the cap-swapping elements keep most samples on their own cap,
+    so they read as the non-swapping ones, and only the refined basis resolves the swap. Such a
+    candidate, within ``max_distortion`` and not the same map as any element, joins the elements;
+    one that is the same map (a thin part's two faces swapped, under the same-map test) does not.
+
+    Returns:
+        whether any was appended.
+    """
+    added = False
+    for e in sorted(candidates, key=lambda e: e.distortion):
+        if e.distortion <= max_distortion and _is_new(final, e.p2p, geo):
+            final.append(e)
+            added = True
+    return added
+
+
+#: most composition rounds of :func:`_close_maps`
+CLOSE_ROUNDS = 3
+
+
+def _close_maps(final: list[Element], geo: Geometry, from_map, max_distortion: float) -> bool:
+    """Close the elements under composition of their vertex maps (in place): every product that is
+    not the same map as an element, measured exactly and kept within ``max_distortion``. Bounded
+    by :data:`CLOSE_ROUNDS` rounds and ``2 G + 8`` elements (``G`` the count it started from).
+
+    Returns:
+        whether the last round found every product among the elements (or rejected it).
+    """
+    most = 2 * len(final) + 8
+    for _ in range(CLOSE_ROUNDS):
+        grew, cut = False, False
+        for a in list(final[1:]):
+            for b in list(final[1:]):
+                prod = a.p2p[b.p2p]
+                if not _is_new(final, prod, geo):
+                    continue
+                if len(final) >= most:
+                    cut = True
+                    continue
+                cand = from_map(prod)
+                if cand.distortion <= max_distortion:
+                    final.append(cand)
+                    grew = True
+        if not grew:
+            return not cut
+    return False
 
 
 def _remake_products(final: list[Element], replaced: list[int], geo: Geometry, from_map) -> None:

@@ -34,7 +34,10 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
    spectral ICP), screened by distortion and dropped if it duplicates an element; the set is closed
    under composition (``groups.closure``) and what closure adds is refined and screened the same way.
 9. **upsample** (:func:`.group_elements.upsample_elements`): the distinct elements are grown to the
-   refined basis, every vertex is mapped, and the distortion is measured exactly.
+   refined basis, every vertex is mapped, and the distortion is measured exactly; a coarse
+   duplicate that the refined basis tells apart joins as an element of its own, and where that
+   happens, or the coarse closure did not end closed, the exact vertex maps are closed under
+   composition.
 10. **group** (:func:`group_of_elements`): the largest set of verified elements closed under
     composition of their *maps* (``groups.largest_subgroup``); table, inverses, orders and name
     (``groups.group_info``), with orientation flags that are a homomorphism of the table and agree
@@ -164,10 +167,10 @@ def _summary_warning(messages: list, result: SymmetryResult) -> str | None:
     what = []
     closure_notes = ("closure exceeded max_order", "did not end closed")
     if any(c in t for t in texts for c in closure_notes):
-        what.append("the products of the coarse elements did not close into a finite group within the "
-                    "size and rounds allowed (matrices too noisy to compose, or a continuous symmetry "
-                    "the continuous test missed); the group is the largest set of verified maps closed "
-                    "under composition, and may lack elements")
+        what.append("the products of the elements did not close into a finite group within the size "
+                    "and rounds allowed, neither as coarse matrices nor as exact vertex maps (maps too "
+                    "noisy to compose, or a continuous symmetry the continuous test missed); the group "
+                    "is the largest set of verified maps closed under composition, and may lack elements")
     if any("partial candidates" in t for t in texts):
         what.append("candidate tuples were cut short (a point set with little structure); elements "
                     "whose candidates were cut may be missing")
@@ -207,7 +210,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     if len(pts.points) < 2:
         return trivial("fewer than 2 invariant points")
     desc = descriptors(spectrum.evals, spectrum.evecs)  # [V, D]
-    allowed = partner_mask(desc[pts.points], pts.dist, cfg.desc_tol)
+    near = (desc, pts.fields <= cfg.partner_radius * EPS_KLC) if cfg.partner_radius > 0 else None
+    allowed = partner_mask(desc[pts.points], pts.dist, cfg.desc_tol, near)
     coef = disk_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields)  # [n, R, k0]
     pairs = tuple_pairs(pts.dist, allowed, min(basis.m + 1, len(pts.points)), cfg.n_sources, cfg.delta,
                         Pinning(coef, basis.bands0))
@@ -235,15 +239,17 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     diag = replace(diag, trace=list(coarse.trace), n_verified=len(coarse.elements),
                    rejected_distortion=coarse.rejected[:10])
     lap("refine")
-    if not coarse.close():
-        warnings.warn(f"closure of the {len(coarse.elements)} coarse elements did not end closed", stacklevel=2)
+    coarse_closed = coarse.close()
     diag = replace(diag, n_after_closure=len(coarse.elements))
     lap("closure")
     if len(coarse.elements) < min_order:  # the largest subgroup of these has at most that many
         return trivial(f"{len(coarse.elements)} elements verified in the coarse basis, fewer than the "
                        f"{min_order} asked for")
-    elements, rejected = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,
-                                           basis.k_refine, cfg.max_distortion, coarse.alternatives)
+    elements, rejected, closed = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,
+                                                   basis.k_refine, cfg.max_distortion, coarse.alternatives,
+                                                   close=not coarse_closed)
+    if not closed:
+        warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
     symmetries, group, diag = group_of_elements(elements, geo, faces, diag)
