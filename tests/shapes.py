@@ -210,11 +210,13 @@ GROUP_SHAPES = [
     ("box_1_08_05", lambda: subdivided_box((1.0, 0.8, 0.5), 0.07), "D2h", 8, 0),
     # added 2026-12-05, each found only in part before: the bend moves the tips' extrema along
     # their vertical edges (the descriptor gate cut their partners), and on the bent eight-pointed
-    # slab the coarse cap-swapping maps read as duplicates of the non-swapping ones
+    # slab the coarse cap-swapping maps read as duplicates of the non-swapping ones (on the thicker
+    # slab bent at R = 3 the coarse screen rejected them: 0.26-0.30 coarse, 0.09 exact)
     ("star6_thin_bent4", lambda: star_slab(6, 0.25), "D6h", 24, 4.0),
     ("star4_h035_bent", lambda: star_slab(4, 0.35), "D4h", 16, 4.0),
     ("star7_thick_bent", lambda: star_slab(7, 0.4), "D7h", 28, 4.0),
     ("star8_thin_bent", lambda: star_slab(8, 0.25), "D8h", 32, 5.0),
+    ("star6_h03_bent3", lambda: star_slab(6, 0.3), "D6h", 24, 3.0),
 ]
 
 

@@ -86,7 +86,8 @@ def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
     """The table's C4v given as its four rotations, with one mirror as a coarse duplicate of the
     identity (as the crude coarse maps of a bent slab's cap swaps read): upsampling finds it is an
     element of its own, appends it and closes the vertex maps into all eight; an alternative that
-    is the same map as an element (the identity again) is not appended."""
+    is the same map as an element (the identity again) is not appended. The same from a near miss
+    of the coarse screen; a wrong near miss (the mirror's matrix plus noise) is not appended."""
     from symtorch.detect.group_elements import CoarseElement, Geometry, upsample_elements
     from symtorch.geodesics import GeodesicSolver
     from symtorch.maps import p2p_to_fmap
@@ -122,6 +123,11 @@ def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
     whole, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5, {0: [coarse_of(fm[mirror])]})
     assert len(whole) == 8
     assert bool((whole[0].p2p == torch.arange(len(v))).all())  # the identity stays first
+    missed, _, _ = upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5, near_misses=[coarse_of(fm[mirror])])
+    assert len(missed) == 8  # a mirror the coarse screen rejected, measured exactly
+    wrong = coarse_of(block_project(fm[mirror] + torch.randn(fm[mirror].shape, generator=torch.Generator().manual_seed(0),
+                                                             dtype=fm[mirror].dtype), bands0))
+    assert len(upsample_elements(coarse, geo, solver, bands, k0, k0, 0.5, near_misses=[wrong]).elements) == 4
     for p in true:  # every true element is found once, within a vertex or two
         gaps = torch.stack([(geo.verts[e.p2p] - geo.verts[p]).norm(dim=1).mean() for e in whole])
         assert int((gaps < 0.5 * EPS_KLC).sum()) == 1, gaps.tolist()

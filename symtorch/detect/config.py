@@ -151,6 +151,9 @@ class GroupConfig:
             differ from it by at least ``alternative_gap`` KLC radii on average); each is upsampled
             and measured exactly too, and the least distorted version kept (0: none).
         alternative_gap: mean image gap, in KLC radii, from which a duplicate is an alternative.
+        near_miss_ratio, n_near_misses: at most this many candidates the coarse screen rejected
+            by at most this ratio of ``max_distortion`` are measured exactly too (the coarse basis
+            can distort what the refined one does not); 0: none.
     """
 
     refine: str = "zoomout"
@@ -168,6 +171,8 @@ class GroupConfig:
     max_distortion: float = 0.25
     n_alternatives: int = 1
     alternative_gap: float = 0.1
+    near_miss_ratio: float = 1.25
+    n_near_misses: int = 4
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):

@@ -160,6 +160,11 @@ class CoarseElements:
         alternatives: element index -> its alternative :class:`CoarseElement` s.
         trace: (distortion, index of the element it duplicates or -1) per candidate added.
         rejected: distortions of the candidates rejected by the screen.
+        near_misses: rejected candidates within ``cfg.near_miss_ratio`` of the screen, not the same
+            map as an element or as one another (least distorted first, at most
+            ``cfg.n_near_misses``): the coarse basis can distort an element that its exact map
+            does not (the cap swaps of a strongly bent slab read 0.26-0.30 coarse, 0.09 exact);
+            :func:`upsample_elements` measures them exactly.
     """
 
     def __init__(self, geo: Geometry, bands0: list[range], k0: int, cfg: GroupConfig):
@@ -169,6 +174,7 @@ class CoarseElements:
         self.alternatives: dict[int, list[CoarseElement]] = {}
         self.trace: list[tuple[float, int]] = []
         self.rejected: list[float] = []
+        self.near_misses: list[CoarseElement] = []
 
     def image_gap(self, a: Tensor, b: Tensor) -> float:
         """Mean distance (unit-area shape) between two image sets of the score samples."""
@@ -183,6 +189,15 @@ class CoarseElements:
             return
         alts = sorted(self.alternatives.get(j, []) + [alt], key=lambda e: e.distortion)
         self.alternatives[j] = alts[:self.cfg.n_alternatives]
+
+    def _keep_near_miss(self, e: CoarseElement) -> None:
+        if self.cfg.n_near_misses <= 0 or self.duplicate_of(e.images, e.fmap) >= 0:
+            return
+        same = [i for i, o in enumerate(self.near_misses) if self.image_gap(o.images, e.images) < 0.5 * EPS_KLC]
+        if same and self.near_misses[same[0]].distortion <= e.distortion:
+            return
+        kept = [o for i, o in enumerate(self.near_misses) if i not in same] + [e]
+        self.near_misses = sorted(kept, key=lambda o: o.distortion)[:self.cfg.n_near_misses]
 
     def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
         """An accepted element with the same images (mean gap < eps/2) or matrix (< DEFAULT_TOL)."""
@@ -212,6 +227,8 @@ class CoarseElements:
         self.trace.append((round(dst, 3), j))
         if rejected:
             self.rejected.append(round(dst, 3))
+            if dst <= self.cfg.near_miss_ratio * self.cfg.max_distortion:
+                self._keep_near_miss(CoarseElement(C0, img, dst))
             return False
         if j >= 0:
             new = CoarseElement(C0, img, dst)
@@ -265,7 +282,7 @@ class Upsampled(NamedTuple):
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
                       bands: list[range], k0: int, kf: int, max_distortion: float,
                       alternatives: dict[int, list[CoarseElement]] | None = None,
-                      close: bool = False) -> Upsampled:
+                      close: bool = False, near_misses: list[CoarseElement] = ()) -> Upsampled:
     """Grow the coarse elements to ``kf``, map every vertex and measure each exactly.
 
     An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
@@ -274,7 +291,8 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     distorts by at most ``EXACT_ENOUGH * max_distortion``), and replaces the element where it
     distorts less; the products that a replaced element takes part in are then re-made from
     it (:func:`_remake_products`), since the element they were closed from was the wrong version.
-    An alternative that is not the same map as any element once refined is an element of its own
+    An alternative, or one of the screen's ``near_misses`` (:class:`CoarseElements`), that is within
+    ``max_distortion`` and not the same map as any element once refined is an element of its own
     (:func:`_add_distinct`); the vertex maps are then closed under composition (:func:`_close_maps`),
     as they are with ``close`` (the coarse closure did not end closed: its matrices may have been
     too crude to compose where the exact maps are not). Elements still above ``max_distortion``
@@ -325,6 +343,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
                 distinct.append(alt)
     if replaced:
         _remake_products(final, replaced, geo, from_map)
+    distinct += [alt for alt in map(grown, near_misses) if alt.distortion <= max_distortion]
     added = bool(distinct) and _add_distinct(final, distinct, geo, max_distortion)
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
     final = [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0]

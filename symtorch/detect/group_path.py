@@ -247,7 +247,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
                        f"{min_order} asked for")
     elements, rejected, closed = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,
                                                    basis.k_refine, cfg.max_distortion, coarse.alternatives,
-                                                   close=not coarse_closed)
+                                                   close=not coarse_closed, near_misses=coarse.near_misses)
     if not closed:
         warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
