@@ -1,12 +1,12 @@
 """The group path on the test suite's shapes with exactly known groups: one table row per shape.
 
-    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py              # every GROUP_SHAPES row + chiral 8 arms
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py              # every GROUP_SHAPES row + the limits
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py arms chiral  # rows whose name contains a word
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --partners
-    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group desc_tol=1.0
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group partner_radius=0
 
 The shapes are ``tests/shapes.py``'s ``GROUP_SHAPES`` (what ``tests/test_group_shapes.py`` checks)
-and the chiral eight arms (``tests/test_group_path.py``). Per shape, as the tests score it:
+and the shapes of the measured limit, :data:`LIMITS` (the chiral eight arms: ``tests/test_group_path.py``). Per shape, as the tests score it:
 ``detect_symmetries(v, f)`` (``mode="auto"``, default knobs), the group found, the true elements
 matched within sqrt(area / (20 pi)) on >= 95 % of 100 evenly spaced vertices and the spurious ones
 (``eval.groups.element_rates``), the warnings, the median distortion of the group path's rotations
@@ -44,7 +44,11 @@ from symtorch.eval.groups import element_rates  # noqa: E402
 from symtorch.geodesics import GeodesicSolver  # noqa: E402
 from symtorch.shapes import symmetry_maps  # noqa: E402
 
-SHAPES = GROUP_SHAPES + [("chiral8", lambda: armed_ball(8, chiral=True), "C8", 8, 0)]
+# the measured limit (BENCHMARKS.md, "Wider shapes"): chiral arms from 7 up read as C_nv, and the
+# swept arms' mirrors distort as much as the chiral arms' (the six swept arms lose them)
+LIMITS = [(f"chiral{n}", (lambda n=n: armed_ball(n, chiral=True)), f"C{n}", n, 0) for n in (7, 8, 9, 10)]
+LIMITS += [(f"arms{n}_swept", (lambda n=n: armed_ball(n, sweep=0.5)), f"C{n}v", 2 * n, 0) for n in (6, 10)]
+SHAPES = GROUP_SHAPES + LIMITS
 
 
 def _median(xs: list[float]) -> str:
