@@ -1,10 +1,12 @@
-"""What one group-path knob costs: ``GroupConfig(KNOB=VALUE)`` against the default, interleaved.
+"""What group-path knobs cost: ``GroupConfig(KEY=VALUE, ...)`` against the default, interleaved.
 
     OMP_NUM_THREADS=1 python scripts/bench_group_knob.py                                 # n_alternatives=0
-    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --knob partner_radius --value 0 --runs 3
-    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --knob n_near_misses --value 0
+    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set partner_radius=0 --runs 3
+    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set n_near_misses=0
+    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set partner_radius=0 n_near_misses=0 \
+        --mode group --k-refine 40 --only table.off --runs 6 --wall      # as evaluate_groups.py times it
 
-CPU seconds of ``detect_symmetries`` (``mode="auto"``, spectrum included) on the paper's table, the
+CPU seconds (``--wall``: wall seconds) of ``detect_symmetries`` (``mode="auto"`` or ``--mode``, spectrum included) on the paper's table, the
 SHREC'07 Watertight table 156 (the shapes read from the shared data where present) and some shapes
 of ``tests/shapes.py``'s ``GROUP_SHAPES``; the two settings interleaved (their order swapped every
 run) so that a change in the machine's load reaches both. Prints the group each setting finds and
@@ -48,32 +50,44 @@ def meshes() -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--knob", default="n_alternatives", help="a GroupConfig field")
-    ap.add_argument("--value", default="0", help="its value to compare the default with (JSON)")
+    ap.add_argument("--set", nargs="+", default=["n_alternatives=0"], metavar="KEY=VALUE",
+                    help="GroupConfig fields (JSON values) to compare the default with")
+    ap.add_argument("--mode", default="auto", choices=["auto", "group"])
+    ap.add_argument("--k-refine", type=int, default=100, help="detect_symmetries' k_refine "
+                    "(evaluate_groups.py times the group mode at 40)")
+    ap.add_argument("--only", nargs="*", default=None, help="only these shapes")
     ap.add_argument("--runs", type=int, default=2)
+    ap.add_argument("--wall", action="store_true", help="wall seconds instead of CPU seconds")
     args = ap.parse_args()
+    knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.set)}
     base = GroupConfig()
-    configs = {"knob": GroupConfig(**{args.knob: json.loads(args.value)}), "default": base}
-    print(f"{args.knob}: {json.loads(args.value)} against the default {getattr(base, args.knob)}")
+    configs = {"knobs": GroupConfig(**knobs), "default": base}
+    label = " ".join(args.set)
+    print(f"{label} against the default ({', '.join(f'{k}={getattr(base, k)}' for k in knobs)}), "
+          f"mode={args.mode}, {'wall' if args.wall else 'CPU'} s")
+    clock = time.perf_counter if args.wall else time.process_time
     totals = {k: 0.0 for k in configs}
     for name, (v, f) in meshes().items():
-        cpu = {k: [] for k in configs}
+        if args.only and name not in args.only:
+            continue
+        secs = {k: [] for k in configs}
         groups = {}
         for run in range(args.runs):
             for k in (list(configs) if run % 2 == 0 else list(configs)[::-1]):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    t = time.process_time()
-                    res = detect_symmetries(v, f, config=DetectConfig(group=configs[k]))
-                    cpu[k].append(time.process_time() - t)
+                    t = clock()
+                    res = detect_symmetries(v, f, mode=args.mode, k_refine=args.k_refine,
+                                            config=DetectConfig(group=configs[k]))
+                    secs[k].append(clock() - t)
                 groups[k] = res.group.name
-        m0, m1 = statistics.median(cpu["knob"]), statistics.median(cpu["default"])
-        totals["knob"] += m0
+        m0, m1 = statistics.median(secs["knobs"]), statistics.median(secs["default"])
+        totals["knobs"] += m0
         totals["default"] += m1
-        print(f"{name:18s} {args.knob}={args.value} {m0:6.2f} s ({groups['knob']:5s})  default {m1:6.2f} s "
+        print(f"{name:18s} {label} {m0:6.2f} s ({groups['knobs']:5s})  default {m1:6.2f} s "
               f"({groups['default']:5s})  ratio {m1 / m0:.2f}", flush=True)
-    print(f"{'sum':18s} {totals['knob']:.2f} s against {totals['default']:.2f} s: ratio "
-          f"{totals['default'] / totals['knob']:.2f}")
+    print(f"{'sum':18s} {totals['knobs']:.2f} s against {totals['default']:.2f} s: ratio "
+          f"{totals['default'] / totals['knobs']:.2f}")
 
 
 if __name__ == "__main__":

@@ -311,8 +311,15 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
         Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
         return Element(Cf, p2p, exact_distortion(p2p))
 
-    def grown(e: CoarseElement) -> Element:
+    def grown(e: CoarseElement, screen: bool = False) -> Element | None:
+        """``e`` in the refined basis, measured exactly; with ``screen``, None where the cheap
+        screen, on the refined map, already rejects it."""
         Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
+        if screen:
+            n = len(geo.points)
+            img = geo.p2p(Cf, torch.cat([geo.points, geo.score_samples]))
+            if geo.distortion_at(img[:n], img[n:]) > max_distortion:
+                return None
         p2p = geo.p2p(Cf)
         return Element(Cf, p2p, exact_distortion(p2p))
 
@@ -343,7 +350,8 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
                 distinct.append(alt)
     if replaced:
         _remake_products(final, replaced, geo, from_map)
-    distinct += [alt for alt in map(grown, near_misses) if alt.distortion <= max_distortion]
+    distinct += [alt for alt in (grown(e, screen=True) for e in near_misses)
+                 if alt is not None and alt.distortion <= max_distortion]
     added = bool(distinct) and _add_distinct(final, distinct, geo, max_distortion)
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
     final = [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0]
