@@ -30,11 +30,10 @@ def test_batched_icp_on_device(device):
     assert float((ref - C).norm(dim=(1, 2)).max()) < float((noisy - C).norm(dim=(1, 2)).min())
 
 
-def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_products():
-    """The table's C4v with one quarter turn and one of its products given as noisy coarse maps: the
-    exact version of the quarter turn, given as its alternative, replaces it, and the product is
-    re-made from it; without the alternative both stay noisy."""
-    from symtorch.detect.group_elements import CoarseElement, Geometry, upsample_elements
+def _table_setup():
+    """The table (subdivided 3 times), its spectrum, bands, coarse size 24, geodesics, the group
+    path's geometry, the true vertex maps and their coarse matrices."""
+    from symtorch.detect.group_elements import Geometry
     from symtorch.geodesics import GeodesicSolver
     from symtorch.maps import p2p_to_fmap
     from symtorch.procrustes import block_project
@@ -50,8 +49,20 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
     solver = GeodesicSolver(vu, f)
     points = farthest_point_sampling(torch.as_tensor(vu), 8)
     geo = Geometry(vu, s, points.numpy(), solver.distances_from(points.numpy()).double(), n_samples=300)
-    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, shapes.true_symmetries("table"))]
+    mats = shapes.true_symmetries("table")
+    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, mats)]
     fm = [block_project(p2p_to_fmap(p, s.evecs[:, :k0], s.mass), bands0) for p in true]
+    return v, s, bands, k0, bands0, solver, geo, mats, true, fm
+
+
+def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_products():
+    """The table's C4v with one quarter turn and one of its products given as noisy coarse maps: the
+    exact version of the quarter turn, given as its alternative, replaces it, and the product is
+    re-made from it; without the alternative both stay noisy."""
+    from symtorch.detect.group_elements import CoarseElement, upsample_elements
+    from symtorch.procrustes import block_project
+
+    v, s, bands, k0, bands0, solver, geo, mats, true, fm = _table_setup()
     # element a (a quarter turn) and c = a∘b noisy; b exact
     a, b = 1, next(j for j in range(2, len(true)) if j != 1)
     prod = true[a][true[b]]
@@ -88,25 +99,10 @@ def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
     element of its own, appends it and closes the vertex maps into all eight; an alternative that
     is the same map as an element (the identity again) is not appended. The same from a near miss
     of the coarse screen; a wrong near miss (the mirror's matrix plus noise) is not appended."""
-    from symtorch.detect.group_elements import CoarseElement, Geometry, upsample_elements
-    from symtorch.geodesics import GeodesicSolver
-    from symtorch.maps import p2p_to_fmap
+    from symtorch.detect.group_elements import CoarseElement, upsample_elements
     from symtorch.procrustes import block_project
-    from symtorch.sampling import farthest_point_sampling
-    from symtorch.spectrum import band_boundary, laplacian_spectrum, solved_bands
 
-    v, f = shapes.table(3)
-    s = laplacian_spectrum(v, f, k=40)
-    bands = solved_bands(s.evals)
-    k0 = band_boundary(bands, 24)
-    bands0 = [b for b in bands if b.stop <= k0]
-    vu = v * s.scale
-    solver = GeodesicSolver(vu, f)
-    points = farthest_point_sampling(torch.as_tensor(vu), 8)
-    geo = Geometry(vu, s, points.numpy(), solver.distances_from(points.numpy()).double(), n_samples=300)
-    mats = shapes.true_symmetries("table")
-    true = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, mats)]
-    fm = [block_project(p2p_to_fmap(p, s.evecs[:, :k0], s.mass), bands0) for p in true]
+    v, s, bands, k0, bands0, solver, geo, mats, true, fm = _table_setup()
     rot = [j for j, M in enumerate(mats) if np.linalg.det(M) > 0]
     mirror = next(j for j, M in enumerate(mats) if np.linalg.det(M) < 0)
 
