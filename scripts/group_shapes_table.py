@@ -16,7 +16,12 @@ radius R instead of their own; ``--group KEY=VALUE`` sets a ``GroupConfig`` fiel
 adds, per shape, how the group path's descriptor gate (``candidates.partner_mask``) treats the true
 partners among its invariant points: the largest descriptor ratio of a point and its image under a
 true element (``candidates.descriptor_ratios``; the gate admits a pair up to ``desc_tol``), and the
-share of those pairs it cuts.
+share of those pairs it cuts. ``--truth`` adds the largest exact distortion of the true elements
+(64 evenly spaced samples, ``verification.isometry_score``, KLC radii), the coarse screen's rejected
+distortions (``diagnostics.group.rejected_distortion``), and, over the orientation-reversing elements
+found, the medians of their per-vertex distortion (mean over 16 farthest-point sources of
+``|d(g s, g x) - d(s, x)|``: median / 95th percentile over the vertices) and of the change of the
+standardised descriptors on the worst 1 % of the area (``verification.standardized_descriptors``).
 """
 from __future__ import annotations
 
@@ -39,6 +44,8 @@ from symtorch.descriptors import descriptors  # noqa: E402
 from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
 from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
 from symtorch.detect.group_path import invariant_point_set  # noqa: E402
+from symtorch.detect.verification import isometry_score, standardized_descriptors  # noqa: E402
+from symtorch.sampling import farthest_point_sampling  # noqa: E402
 from symtorch.units import EPS_KLC  # noqa: E402
 from symtorch.eval.groups import element_rates  # noqa: E402
 from symtorch.geodesics import GeodesicSolver  # noqa: E402
@@ -53,6 +60,37 @@ SHAPES = GROUP_SHAPES + LIMITS
 
 def _median(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3f}" if xs else "–"
+
+
+def truth_columns(v, f, true_maps: np.ndarray, res) -> str:
+    """The ``--truth`` columns (see the module docstring)."""
+    sp = res.spectrum
+    vu = np.asarray(v, dtype=np.float64) * sp.scale
+    solver = GeodesicSolver(vu, f)
+    samples = torch.as_tensor(np.linspace(0, len(v) - 1, 64).astype(np.int64))
+    D0 = solver.pairwise(samples)
+    true_max = max(isometry_score(solver, torch.as_tensor(g), samples, D0).distortion for g in true_maps)
+    rej = res.diagnostics.group.rejected_distortion or []
+    src = farthest_point_sampling(torch.as_tensor(vu), 16).numpy()
+    D = torch.as_tensor(np.asarray(solver.distances_from(src)))  # [16, V]
+    Z = standardized_descriptors(descriptors(sp.evals, sp.evecs))
+    w = sp.mass / sp.mass.sum()
+    med, p95, worst = [], [], []
+    for s, reversing in zip(res.symmetries, res.group.reversing.tolist()):
+        if not reversing:
+            continue
+        g = s.p2p.numpy()
+        per_vertex = ((torch.as_tensor(np.asarray(solver.distances_from(g[src])))[:, g] - D).abs().mean(0)
+                      / EPS_KLC).numpy()
+        med.append(float(np.median(per_vertex)))
+        p95.append(float(np.quantile(per_vertex, 0.95)))
+        change = (Z - Z[s.p2p]).abs().mean(1)
+        order = torch.argsort(change, descending=True)
+        top = torch.cumsum(w[order], 0) <= 0.01
+        worst.append(float((change[order] * w[order])[top].sum() / 0.01))
+    rej_s = f"{min(rej):.2f}-{max(rej):.2f}" if rej else "–"
+    mir = f"{_median(med)} / {_median(p95)} | {_median(worst)}" if med else "– | –"
+    return f" {true_max:.3f} | {rej_s} | {mir} |"
 
 
 def partner_ratios(v, f, true_maps: np.ndarray, cfg: GroupConfig) -> np.ndarray:
@@ -79,13 +117,19 @@ def main() -> None:
     ap.add_argument("--bend", type=float, default=None, help="bend radius of the rows chosen (0: flat)")
     ap.add_argument("--group", nargs="*", default=[], metavar="KEY=VALUE", help="GroupConfig fields")
     ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
+    ap.add_argument("--truth", action="store_true", help="the true elements' distortion, the screen's "
+                    "rejections, the mirrors' per-vertex distortion and descriptor change")
     args = ap.parse_args()
     knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
     cfg = DetectConfig(group=GroupConfig(**knobs))
     torch.set_num_threads(1)
-    extra = " | partners' largest ratio (cut, desc_tol) |" if args.partners else " |"
-    print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s" + extra)
-    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else ""))
+    extra = " | partners' largest ratio (cut, desc_tol)" if args.partners else ""
+    extra += (" | true elements' largest distortion | coarse rejections | mirrors' per-vertex distortion "
+              "median / p95 | mirrors' worst-1 % descriptor change") if args.truth else ""
+    print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s"
+          + extra + " |")
+    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
+          + ("---:|---|---|---:|" if args.truth else ""))
     for name, build, group, order, radius in SHAPES:
         if args.words and not any(w in name for w in args.words):
             continue
@@ -112,6 +156,8 @@ def main() -> None:
             r = partner_ratios(v, f, symmetry_maps(v0, mats), cfg.group)
             print(f" {r.max():.2f} ({100 * (r > cfg.group.desc_tol).mean():.0f} %, {cfg.group.desc_tol:g}) |"
                   if len(r) else " – |", end="")
+        if args.truth:
+            print(truth_columns(v, f, symmetry_maps(v0, mats), res), end="")
         print(flush=True)
 
 

@@ -116,8 +116,8 @@ def test_one_warning_per_detection(monkeypatch):
     assert not caught, [str(w.message) for w in caught]
     assert (res.group.name, res.group.order) == ("D4h", 16)
 
-    real_close = ge._close_maps
-    monkeypatch.setattr(ge, "_close_maps", lambda *a, **k: real_close(*a, **k) and False)
+    real_close = ge._Maps.close
+    monkeypatch.setattr(ge._Maps, "close", lambda *a, **k: real_close(*a, **k) and False)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = detect_group(v, f, spectrum, k=20, k_refine=40)

@@ -21,6 +21,7 @@ from torch import Tensor
 from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
+from .verification import standardized_descriptors
 
 __all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
            "candidate_tuples", "tuple_pairs", "TuplePairs"]
@@ -243,14 +244,12 @@ def descriptor_ratios(desc: Tensor, near: tuple[Tensor, Tensor] | None = None) -
             vertices around each point (each point's own vertex among them).
     """
     n = len(desc)
-    L = torch.log(desc.clamp_min(1e-12))
-    mu, sd = L.mean(0), L.std(0).clamp_min(1e-12)
-    z = (L - mu) / sd  # standardized_descriptors(desc)
+    z = standardized_descriptors(desc)
     dd = torch.cdist(z, z).numpy()
     off = dd[~np.eye(n, dtype=bool)]
     scale = float(np.median(off)) if off.size else 0.0
     if near is not None:
-        z_all = (torch.log(near[0].clamp_min(1e-12)) - mu) / sd  # [V, D]
+        z_all = standardized_descriptors(near[0], like=desc)  # [V, D], in the points' units
         around = np.stack([torch.cdist(z, z_all[near[1][j]]).min(1).values.numpy() for j in range(n)], 1)
         dd = np.minimum(dd, np.minimum(around, around.T))
     return dd / scale if scale > 0 else np.where(dd > 1e-9, np.inf, 0.0)

@@ -49,6 +49,11 @@ def image_gaps(verts: Tensor, images: Tensor, query: Tensor) -> Tensor:
     return (verts[images] - verts[query][None]).norm(dim=-1).mean(-1)
 
 
+#: two maps are one element when their images of the score samples lie closer than this, on
+#: average (KLC radii): the same-map test of every stage here
+SAME_MAP_GAP = 0.5
+
+
 class CoarseElement(NamedTuple):
     """An element verified in the coarse basis."""
 
@@ -97,6 +102,13 @@ class Geometry:
     def p2p(self, C: Tensor, at: Tensor | None = None) -> Tensor:
         """Vertex map of C [k, k] at the vertices ``at`` (default all): ``maps.TwoLevelSearch``."""
         return self.search(C, at)
+
+    def screen(self, C: Tensor) -> tuple[float, Tensor]:
+        """The cheap screen of a matrix ``C [k, k]``: (its distortion, the images ``[S']`` of the
+        score samples)."""
+        n = len(self.points)
+        img = self.p2p(C, torch.cat([self.points, self.score_samples]))
+        return self.distortion_at(img[:n], img[n:]), img[n:]
 
     def distortion_at(self, gp: Tensor, gx: Tensor) -> float:
         """The cheap screen's distortion from the images ``gp`` of the points and ``gx`` of the
@@ -191,19 +203,22 @@ class CoarseElements:
         self.alternatives[j] = alts[:self.cfg.n_alternatives]
 
     def _keep_near_miss(self, e: CoarseElement) -> None:
+        """Keep a rejected candidate as a near miss unless it duplicates an element, or a near miss
+        that distorts less (one that distorts more it replaces)."""
         if self.cfg.n_near_misses <= 0 or self.duplicate_of(e.images, e.fmap) >= 0:
             return
-        same = [i for i, o in enumerate(self.near_misses) if self.image_gap(o.images, e.images) < 0.5 * EPS_KLC]
+        same = [i for i, o in enumerate(self.near_misses)
+                if self.image_gap(o.images, e.images) < SAME_MAP_GAP * EPS_KLC]
         if same and self.near_misses[same[0]].distortion <= e.distortion:
             return
         kept = [o for i, o in enumerate(self.near_misses) if i not in same] + [e]
         self.near_misses = sorted(kept, key=lambda o: o.distortion)[:self.cfg.n_near_misses]
 
     def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
-        """An accepted element with the same images (mean gap < eps/2) or matrix (< DEFAULT_TOL)."""
+        """An accepted element with the same images (mean gap < SAME_MAP_GAP eps) or matrix (< DEFAULT_TOL)."""
         gap = image_gaps(self.geo.verts, torch.stack([e.images for e in self.elements]), images)  # [G]
         j = int(gap.argmin())
-        if float(gap[j]) < 0.5 * EPS_KLC:
+        if float(gap[j]) < SAME_MAP_GAP * EPS_KLC:
             return j
         # maps can differ where an element is ill-pinned; the matrices then still agree
         d = _rel_dist(C0[None], torch.stack([e.fmap for e in self.elements]))[0]
@@ -218,10 +233,7 @@ class CoarseElements:
             C0 = batched_icp(C0[None], E_s, E_s, self.bands0, n_iter=10)[0]
         else:
             C0 = zoomout(geo, C0, self.bands0, self.k0)
-        n = len(geo.points)
-        img = geo.p2p(C0, torch.cat([geo.points, geo.score_samples]))
-        dst = geo.distortion_at(img[:n], img[n:])
-        img = img[n:]
+        dst, img = geo.screen(C0)
         rejected = dst > self.cfg.max_distortion
         j = -1 if rejected else self.duplicate_of(img, C0)
         self.trace.append((round(dst, 3), j))
@@ -293,7 +305,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     it (:func:`_remake_products`), since the element they were closed from was the wrong version.
     An alternative, or one of the screen's ``near_misses`` (:class:`CoarseElements`), that is within
     ``max_distortion`` and not the same map as any element once refined is an element of its own
-    (:func:`_add_distinct`); the vertex maps are then closed under composition (:func:`_close_maps`),
+    (:meth:`_Maps.add_distinct`); the vertex maps are then closed under composition (:meth:`_Maps.close`),
     as they are with ``close`` (the coarse closure did not end closed: its matrices may have been
     too crude to compose where the exact maps are not). Elements still above ``max_distortion``
     are dropped, the identity never.
@@ -315,11 +327,8 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
         """``e`` in the refined basis, measured exactly; with ``screen``, None where the cheap
         screen, on the refined map, already rejects it."""
         Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
-        if screen:
-            n = len(geo.points)
-            img = geo.p2p(Cf, torch.cat([geo.points, geo.score_samples]))
-            if geo.distortion_at(img[:n], img[n:]) > max_distortion:
-                return None
+        if screen and geo.screen(Cf)[0] > max_distortion:
+            return None
         p2p = geo.p2p(Cf)
         return Element(Cf, p2p, exact_distortion(p2p))
 
@@ -346,78 +355,88 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
                 final[i] = alt
                 if i not in replaced:
                     replaced.append(i)
-            elif alt.distortion <= max_distortion:
+            else:
                 distinct.append(alt)
     if replaced:
         _remake_products(final, replaced, geo, from_map)
-    distinct += [alt for alt in (grown(e, screen=True) for e in near_misses)
-                 if alt is not None and alt.distortion <= max_distortion]
-    added = bool(distinct) and _add_distinct(final, distinct, geo, max_distortion)
+    distinct += [alt for alt in (grown(e, screen=True) for e in near_misses) if alt is not None]
     rejected = [round(e.distortion, 3) for e in final if e.distortion > max_distortion]
     final = [e for i, e in enumerate(final) if e.distortion <= max_distortion or i == 0]
-    closed = _close_maps(final, geo, from_map, max_distortion) if added or close else True
+    maps = _Maps(final, geo)
+    added = maps.add_distinct(distinct, max_distortion)
+    closed = maps.close(from_map, max_distortion) if added or close else True
     return Upsampled(final, rejected, closed)
 
 
-def _is_new(final: list[Element], p2p: Tensor, geo: Geometry) -> bool:
-    """Whether a vertex map lands, on the score samples, at least half a KLC radius (mean) from
-    every element's: the coarse stage's same-map test, on exact maps."""
-    S = geo.score_samples
-    gap = image_gaps(geo.verts, torch.stack([e.p2p[S] for e in final]), p2p[S])
-    return float(gap.min()) >= 0.5 * EPS_KLC
+class _Maps:
+    """The exact elements (a list it appends to in place) with their images of the score samples
+    kept in step, for the same-map test of the elements that upsampling adds."""
+
+    def __init__(self, elements: list[Element], geo: Geometry):
+        self.elements, self.geo = elements, geo
+        self.images = torch.stack([e.p2p[geo.score_samples] for e in elements])  # [G, S']
+
+    def is_new(self, p2p: Tensor) -> bool:
+        """Whether ``p2p`` lands, on the score samples, at least ``SAME_MAP_GAP`` KLC radii (mean)
+        from every element's images: the coarse stage's same-map test, on exact maps."""
+        gap = image_gaps(self.geo.verts, self.images, p2p[self.geo.score_samples])
+        return float(gap.min()) >= SAME_MAP_GAP * EPS_KLC
+
+    def append(self, e: Element) -> None:
+        self.elements.append(e)
+        self.images = torch.cat([self.images, e.p2p[self.geo.score_samples][None]])
+
+    def add_distinct(self, candidates: list[Element], max_distortion: float) -> bool:
+        """Append the candidates that upsampling made into elements of their own.
+
+        A coarse duplicate can be a *different* element whose coarse map was too crude to tell:
+        on a bent thin slab the coarse maps of the cap-swapping elements keep most samples on their
+        own cap, so they read as the non-swapping ones, and only the refined basis resolves the
+        swap. Such a candidate, within ``max_distortion`` and not the same map as any element, joins
+        the elements; one that is the same map (a thin part's two faces swapped, under the same-map
+        test) does not.
+
+        Returns:
+            whether any was appended.
+        """
+        added = False
+        for e in sorted(candidates, key=lambda e: e.distortion):
+            if e.distortion <= max_distortion and self.is_new(e.p2p):
+                self.append(e)
+                added = True
+        return added
+
+    def close(self, from_map, max_distortion: float) -> bool:
+        """Close the elements under composition of their vertex maps: every product that is not
+        the same map as an element, measured exactly (``from_map``) and kept within
+        ``max_distortion``. Bounded by :data:`CLOSE_ROUNDS` rounds and ``2 G + 8`` elements
+        (``G`` the count it started from).
+
+        Returns:
+            whether the last round found every product among the elements (or rejected it).
+        """
+        most = 2 * len(self.elements) + 8
+        for _ in range(CLOSE_ROUNDS):
+            grew, cut = False, False
+            for a in list(self.elements[1:]):
+                for b in list(self.elements[1:]):
+                    prod = a.p2p[b.p2p]
+                    if not self.is_new(prod):
+                        continue
+                    if len(self.elements) >= most:
+                        cut = True
+                        continue
+                    cand = from_map(prod)
+                    if cand.distortion <= max_distortion:
+                        self.append(cand)
+                        grew = True
+            if not grew:
+                return not cut
+        return False
 
 
-def _add_distinct(final: list[Element], candidates: list[Element], geo: Geometry,
-                  max_distortion: float) -> bool:
-    """Append the candidates that upsampling made into elements of their own (in place).
-
-    A coarse duplicate can be a *different* element whose coarse map was too crude to tell: on a
-    bent thin slab the coarse maps of the cap-swapping elements keep most samples on their own cap,
-    so they read as the non-swapping ones, and only the refined basis resolves the swap. Such a
-    candidate, within ``max_distortion`` and not the same map as any element, joins the elements;
-    one that is the same map (a thin part's two faces swapped, under the same-map test) does not.
-
-    Returns:
-        whether any was appended.
-    """
-    added = False
-    for e in sorted(candidates, key=lambda e: e.distortion):
-        if e.distortion <= max_distortion and _is_new(final, e.p2p, geo):
-            final.append(e)
-            added = True
-    return added
-
-
-#: most composition rounds of :func:`_close_maps`
+#: most composition rounds of :meth:`_Maps.close`
 CLOSE_ROUNDS = 3
-
-
-def _close_maps(final: list[Element], geo: Geometry, from_map, max_distortion: float) -> bool:
-    """Close the elements under composition of their vertex maps (in place): every product that is
-    not the same map as an element, measured exactly and kept within ``max_distortion``. Bounded
-    by :data:`CLOSE_ROUNDS` rounds and ``2 G + 8`` elements (``G`` the count it started from).
-
-    Returns:
-        whether the last round found every product among the elements (or rejected it).
-    """
-    most = 2 * len(final) + 8
-    for _ in range(CLOSE_ROUNDS):
-        grew, cut = False, False
-        for a in list(final[1:]):
-            for b in list(final[1:]):
-                prod = a.p2p[b.p2p]
-                if not _is_new(final, prod, geo):
-                    continue
-                if len(final) >= most:
-                    cut = True
-                    continue
-                cand = from_map(prod)
-                if cand.distortion <= max_distortion:
-                    final.append(cand)
-                    grew = True
-        if not grew:
-            return not cut
-    return False
 
 
 def _remake_products(final: list[Element], replaced: list[int], geo: Geometry, from_map) -> None:
@@ -435,7 +454,7 @@ def _remake_products(final: list[Element], replaced: list[int], geo: Geometry, f
             for prod in (a[final[j].p2p], final[j].p2p[a]):
                 gap = image_gaps(geo.verts, images, prod[S])  # [G]
                 c = int(gap.argmin())
-                if c in (0, i) or float(gap[c]) >= 0.5 * EPS_KLC:
+                if c in (0, i) or float(gap[c]) >= SAME_MAP_GAP * EPS_KLC:
                     continue
                 cand = from_map(prod)
                 if cand.distortion < final[c].distortion:

@@ -128,10 +128,12 @@ def local_errors(fields: Tensor, samples: Tensor, p2p: Tensor, desc: Tensor, max
     return out
 
 
-def standardized_descriptors(desc: Tensor) -> Tensor:
-    """[V, D] log-descriptors standardised per column (units of each column's spread)."""
+def standardized_descriptors(desc: Tensor, like: Tensor | None = None) -> Tensor:
+    """[V, D] log-descriptors standardised per column (units of each column's spread), by the
+    columns' mean and spread over ``like`` [V', D] (default ``desc`` itself)."""
     L = torch.log(desc.clamp_min(1e-12))
-    return (L - L.mean(0)) / L.std(0).clamp_min(1e-12)
+    R = L if like is None else torch.log(like.clamp_min(1e-12))
+    return (L - R.mean(0)) / R.std(0).clamp_min(1e-12)
 
 
 def involution_error(fields: Tensor, samples: Tensor, p2p: Tensor) -> float:
