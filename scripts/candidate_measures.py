@@ -65,10 +65,30 @@ def measures(p2p: np.ndarray, verts_unit: np.ndarray, vertex_mass: np.ndarray, e
     inside = block_mask([r for r in bands if r.stop <= K], K)
     n = len(sample_fields)
     disp = sample_fields[np.arange(n), p2p[samples[:n]]].mean() / eps
-    return {"disp": float(disp), "local": float(np.abs(np.log((d1 + 1e-3) / (d0 + 1e-3))).mean()),
+    return {"extr": extrinsic_agreement(p2p, verts_unit, vertex_mass), "disp": float(disp), "local": float(np.abs(np.log((d1 + 1e-3) / (d0 + 1e-3))).mean()),
             "1-cover": float(vertex_mass[~hit].sum() / vertex_mass.sum()),
             "invol": float(np.linalg.norm(verts_unit[p2p[p2p]] - verts_unit, axis=1).mean() / eps),
             "offblock": float((C[~inside] ** 2).sum() / (C ** 2).sum())}
+
+
+def extrinsic_agreement(p2p: np.ndarray, verts_unit: np.ndarray, vertex_mass: np.ndarray,
+                        radius: float = 0.5, n_iter: int = 8) -> float:
+    """The share of the area (higher is better) that one plane reflection of space carries onto the
+    map's images: ``|Q x + t - g(x)| < radius`` KLC radii for an improper rigid motion ``(Q, t)``
+    fitted robustly (trimmed Kabsch with ``det Q = -1``) to the pairs ``(x, g(x))``."""
+    eps = math.sqrt(1 / (20 * math.pi))
+    x, y, w = verts_unit, verts_unit[p2p], vertex_mass / vertex_mass.sum()
+    keep = np.ones(len(x), dtype=bool)
+    for _ in range(n_iter):
+        ww = w * keep
+        cx, cy = ww @ x / ww.sum(), ww @ y / ww.sum()
+        H = ((x - cx) * ww[:, None]).T @ (y - cy)
+        U, _, Vt = np.linalg.svd(H)
+        d = -np.sign(np.linalg.det(Vt.T @ U.T))
+        Q = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+        r = np.linalg.norm((x - cx) @ Q.T + cy - y, axis=1) / eps
+        keep = r < max(radius, float(np.quantile(r, 0.5)))
+    return float(w[r < radius].sum())
 
 
 def main(argv=None) -> int:
@@ -115,7 +135,7 @@ def main(argv=None) -> int:
         samples = farthest_point_sampling(torch.as_tensor(vu), 1000).numpy()
         fields = solver.distances_from(samples[:200]).numpy() * spec.scale
         print(f"{name}: {len(trials)} upsampled candidates (plain, then guided)")
-        print(f"  {'#':>3} {'rate':>6} {'vote':>7} {'dist':>6} {'local':>6} {'1-cover':>7} {'invol':>6} {'offblock':>8} {'disp':>6}")
+        print(f"  {'#':>3} {'rate':>6} {'vote':>7} {'dist':>6} {'local':>6} {'1-cover':>7} {'invol':>6} {'offblock':>8} {'disp':>6} {'extr':>6}")
         for i, (C, (vote, dist)) in enumerate(zip(recorded, trials)):
             if not math.isfinite(dist):
                 continue  # not orientation-reversing: the selection does not compare it
@@ -124,7 +144,7 @@ def main(argv=None) -> int:
             rate = float(klc_rates(geodesic_errors(solver, p2p, pairs), solver.area))
             m = measures(p2p, vu, spec.mass.numpy(), spec.evecs, spec.mass, bands, samples, fields)
             print(f"  {i:>3} {rate:6.3f} {vote:7.3f} {dist:6.3f} {m['local']:6.3f} {m['1-cover']:7.3f} "
-                  f"{m['invol']:6.3f} {m['offblock']:8.3f} {m['disp']:6.3f}", flush=True)
+                  f"{m['invol']:6.3f} {m['offblock']:8.3f} {m['disp']:6.3f} {m['extr']:6.3f}", flush=True)
     return 0
 
 
