@@ -56,23 +56,26 @@ def _table_setup():
 
 
 def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_products():
-    """The table's C4v with one quarter turn and one of its products given as noisy coarse maps: the
-    exact version of the quarter turn, given as its alternative, replaces it, and the product is
-    re-made from it; without the alternative both stay noisy."""
+    """The table's C4v with one mirror and its product with the other mirror (the half turn) given as
+    noisy coarse maps: the exact version of the mirror, given as its alternative, replaces it, and the
+    half turn is re-made from it; without the alternative both stay noisy. Mirrors and half turn
+    because they are exact on this triangulation (about 1e-3); the quarter turns are not (about 0.3
+    even when exact), so a product made from one is no better than a noisy element."""
     from symtorch.detect.group_elements import CoarseElement, upsample_elements
     from symtorch.procrustes import block_project
 
     v, s, bands, k0, bands0, solver, geo, mats, true, fm = _table_setup()
-    # element a (a quarter turn) and c = a∘b noisy; b exact
-    a, b = 1, next(j for j in range(2, len(true)) if j != 1)
+    # element a (the mirror y -> -y) and c = a∘b (the half turn) noisy; b (the mirror x -> -x) exact
+    a, b = (j for j, M in enumerate(mats) if np.linalg.det(M) < 0 and np.allclose(M, np.diag(np.diag(M))))
     prod = true[a][true[b]]
     c = next(j for j, p in enumerate(true) if bool((p == prod).all()))
     assert c not in (0, a, b)
     g = torch.Generator().manual_seed(0)
-    # a: a wrong map; c: the same map as the truth, only more distorted (the case alternatives are for);
-    # c's noise must change its vertex map (at 0.35 its map equals the truth's with some installs)
+    # a: a wrong map, distorted well past the 0.1 * max_distortion under which an element is exact
+    # enough to keep its map; c: the same map as the truth, only more distorted (the case
+    # alternatives are for); c's noise must change its vertex map
     noisy = {j: block_project(fm[j] + w * torch.randn(fm[j].shape, generator=g, dtype=fm[j].dtype), bands0)
-             for j, w in ((a, 1.0), (c, 0.6))}
+             for j, w in ((a, 2.0), (c, 0.6))}
 
     def coarse_of(C):
         return CoarseElement(C, geo.p2p(C, geo.score_samples), 0.1)
@@ -87,10 +90,12 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
 
     assert fixed[a].distortion < plain[a].distortion
     assert error(fixed[a].p2p, a) < 1.5 * error(geo.p2p(fm[a]), a) < error(plain[a].p2p, a)
-    assert fixed[c].distortion < plain[c].distortion  # re-made from the fixed quarter turn
+    assert fixed[c].distortion < plain[c].distortion  # re-made from the fixed mirror
     assert any(bool((fixed[c].p2p == p).all()) for p in (fixed[a].p2p[fixed[b].p2p], fixed[b].p2p[fixed[a].p2p]))
-    assert [float(e.distortion) for i, e in enumerate(fixed) if i not in (a, c)] == \
-        [float(e.distortion) for i, e in enumerate(plain) if i not in (a, c)]
+    # the identity and b keep their maps; a product of the fixed mirror replaces an element only where
+    # it is less distorted (the quarter turns may be re-made, never made worse)
+    assert all(bool((fixed[i].p2p == plain[i].p2p).all()) for i in (0, b))
+    assert all(fixed[i].distortion <= plain[i].distortion for i in range(len(plain)))
 
 
 def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
