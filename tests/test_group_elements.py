@@ -59,8 +59,8 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
     """The table's C4v with one mirror and its product with the other mirror (the half turn) given as
     noisy coarse maps: the exact version of the mirror, given as its alternative, replaces it, and the
     half turn is re-made from it; without the alternative both stay noisy. Mirrors and half turn
-    because they are exact on this triangulation (about 1e-3); the quarter turns are not (about 0.3
-    even when exact), so a product made from one is no better than a noisy element."""
+    because the subdivided table keeps them exactly; it is not 4-fold symmetric, so an exact quarter
+    turn distorts about as much as a noisy element and a product made from one replaces nothing."""
     from symtorch.detect.group_elements import CoarseElement, upsample_elements
     from symtorch.procrustes import block_project
 
@@ -71,8 +71,8 @@ def test_a_less_distorted_alternative_replaces_its_element_and_remakes_its_produ
     c = next(j for j, p in enumerate(true) if bool((p == prod).all()))
     assert c not in (0, a, b)
     g = torch.Generator().manual_seed(0)
-    # a: a wrong map, distorted well past the 0.1 * max_distortion under which an element is exact
-    # enough to keep its map; c: the same map as the truth, only more distorted (the case
+    # a: a wrong map, distorted well past EXACT_ENOUGH * max_distortion, under which an element keeps
+    # its map; c: the same map as the truth, only more distorted (the case
     # alternatives are for); c's noise must change its vertex map
     noisy = {j: block_project(fm[j] + w * torch.randn(fm[j].shape, generator=g, dtype=fm[j].dtype), bands0)
              for j, w in ((a, 2.0), (c, 0.6))}
