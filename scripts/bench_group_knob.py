@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from shapes import GROUP_SHAPES, bend  # noqa: E402
 
 SHAPES = ("star5_thin", "star5_thin_bent", "star8_thin", "box", "arms8", "chiral5", "star6_thin_bent4",
-          "star6_h03_bent3")
+          "star6_h03_bent3", "arms8_bent4", "chiral8_bent4")
 
 
 def meshes() -> dict:

@@ -347,10 +347,10 @@ def bands_from_sizes(sizes) -> list[range]:
     return bands
 
 
-def solved_bands(evals) -> list[range]:
-    """``eigen_bands(evals)`` without the last band, which the eigensolve may have cut (kept when it
-    is the only one): the bands a symmetry matrix can be block-diagonal over."""
-    bands = eigen_bands(evals)
+def solved_bands(evals, rel_gap: float = 0.3) -> list[range]:
+    """``eigen_bands(evals, rel_gap)`` without the last band, which the eigensolve may have cut (kept
+    when it is the only one): the bands a symmetry matrix can be block-diagonal over."""
+    bands = eigen_bands(evals, rel_gap)
     return bands[:-1] if len(bands) > 1 else bands
 
 

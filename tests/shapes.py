@@ -110,12 +110,12 @@ def uv_sphere(n_lon: int, n_lat: int = 48):
 
 
 def armed_ball(n: int = 8, chiral: bool = False, elev: float = -20.0, length: float = 0.9,
-               width: float = 0.35, droop: float = 0.6, sweep: float = 0.0):
+               width: float = 0.35, droop: float = 0.6, sweep: float = 0.0, bump: float = 0.8):
     """C_nv (or C_n, ``chiral``): n identical cones drooping from a ball, like the legs of a spider.
 
     With ``chiral`` each arm carries a bump on one side, which no mirror keeps: the intrinsic group
     is then the n rotations alone (a sideways bend of the arms would not do: bending is an
-    isometry, and the mirrors would survive intrinsically). ``sweep`` bends every arm sideways by
+    isometry, and the mirrors would survive intrinsically); ``bump`` is its height. ``sweep`` bends every arm sideways by
     the same near-isometry (a pinwheel): the extrinsic mirrors go, the intrinsic ones stay.
     """
     u, f = uv_sphere(8 * n)
@@ -132,7 +132,7 @@ def armed_ball(n: int = 8, chiral: bool = False, elev: float = -20.0, length: fl
             a2 = a + 0.7 * width
             e2 = el + 0.4
             c = np.array([math.cos(e2) * math.cos(a2), math.cos(e2) * math.sin(a2), math.sin(e2)])
-            r += 0.8 * np.exp(-np.sum((u - c) ** 2, 1) / 0.03)
+            r += bump * np.exp(-np.sum((u - c) ** 2, 1) / 0.03)
     v = u * r[:, None]
     v[:, 2] -= drop
     if sweep:
@@ -188,7 +188,6 @@ GROUP_SHAPES = [
     ("arms8", lambda: armed_ball(8), "C8v", 16, 0),
     ("arms9", lambda: armed_ball(9), "C9v", 18, 0),
     ("arms10", lambda: armed_ball(10), "C10v", 20, 0),
-    ("arms8_swept", lambda: armed_ball(8, sweep=0.5), "C8v", 16, 0),
     ("chiral3", lambda: armed_ball(3, chiral=True), "C3", 3, 0),
     ("chiral5", lambda: armed_ball(5, chiral=True), "C5", 5, 0),
     ("chiral6", lambda: armed_ball(6, chiral=True), "C6", 6, 0),
@@ -217,6 +216,16 @@ GROUP_SHAPES = [
     ("star7_thick_bent", lambda: star_slab(7, 0.4), "D7h", 28, 4.0),
     ("star8_thin_bent", lambda: star_slab(8, 0.25), "D8h", 32, 5.0),
     ("star6_h03_bent3", lambda: star_slab(6, 0.3), "D6h", 24, 3.0),
+    # added 2026-12-07: chiral arms from seven up came out C_nv (the mirrors a near-symmetry, now
+    # left out: group_path.near_symmetry_coset), the bent arms C2v or C2 (the bend splits the 2-D
+    # eigenspaces the rotations mix: GroupConfig.merged_gap)
+    ("chiral7", lambda: armed_ball(7, chiral=True), "C7", 7, 0),
+    ("chiral8", lambda: armed_ball(8, chiral=True), "C8", 8, 0),
+    ("chiral9", lambda: armed_ball(9, chiral=True), "C9", 9, 0),
+    ("chiral10", lambda: armed_ball(10, chiral=True), "C10", 10, 0),
+    ("arms8_bent4", lambda: armed_ball(8), "C8v", 16, 4.0),
+    ("arms8_bent8", lambda: armed_ball(8), "C8v", 16, 8.0),
+    ("chiral8_bent4", lambda: armed_ball(8, chiral=True), "C8", 8, 4.0),
 ]
 
 

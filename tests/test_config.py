@@ -40,3 +40,7 @@ def test_invalid_choices_are_refused():
         ReflectionConfig(max_local_errors=-1)
     with pytest.raises(ValueError, match="refine must be"):
         GroupConfig(refine="lbfgs")
+    with pytest.raises(ValueError, match="near_mirrors must be 'drop' or 'keep'"):
+        GroupConfig(near_mirrors="flag")
+    with pytest.raises(ValueError, match="merged_gap must be at least 0"):
+        GroupConfig(merged_gap=-0.5)

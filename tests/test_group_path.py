@@ -3,13 +3,15 @@ detect_symmetries(mode="group").
 """
 import warnings
 from itertools import permutations
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
 
 from symtorch import detect_symmetries, laplacian_spectrum, shapes
-from symtorch.detect.group_path import has_multiplicities, near_symmetry_coset
+from symtorch.detect.config import DetectConfig, GroupConfig
+from symtorch.detect.group_path import has_multiplicities, near_symmetry_coset, unexplained_multiplicities
 from symtorch.eval import klc_threshold
 from symtorch.eval.groups import dihedral_orbit_errors, element_rates
 from symtorch.geodesics import GeodesicSolver
@@ -31,6 +33,22 @@ def test_has_multiplicities():
     assert has_multiplicities(torch.tensor([0.0, 1, 1, 2, 3, 3, 5, 7, 7, 9, 11, 11, 13, 15, 15, 17,
                                             19, 19, 21, 23, 23.0]))
     assert not has_multiplicities(torch.arange(25, dtype=torch.float64))
+
+
+def test_unexplained_multiplicities():
+    pairs = torch.tensor([0.0, 1, 1, 2, 3, 3, 5, 7, 7, 9, 11, 11, 13, 15, 15, 17, 19, 19, 21, 23, 23.0])
+
+    def found(orders, continuous=False):
+        return SimpleNamespace(continuous=continuous, group=SimpleNamespace(orders=torch.tensor(orders)))
+
+    # a C2v found on a spectrum of pairs: the pairs need a rotation of order >= 3 it did not find
+    assert unexplained_multiplicities(found([1, 2, 2, 2]), pairs)
+    assert unexplained_multiplicities(found([1]), pairs)
+    # a rotation of order 4 explains them; a simple spectrum needs nothing; a continuous symmetry
+    # is not a finite group to extend
+    assert not unexplained_multiplicities(found([1, 4, 2, 4]), pairs)
+    assert not unexplained_multiplicities(found([1, 2, 2, 2]), torch.arange(25, dtype=torch.float64))
+    assert not unexplained_multiplicities(found([1], continuous=True), pairs)
 
 
 # --------------------------------------------------------------------------- shapes with known groups
@@ -232,14 +250,23 @@ def test_near_symmetry_coset_rule():
 
 
 @pytest.mark.extended
-def test_mirrors_on_chiral_arms_are_flagged_as_near_symmetries():
+def test_mirrors_on_chiral_arms_are_left_out_as_near_symmetries():
     # eight arms, each with a bump on one side: the exact group is C8; the mirrors move the bumps
-    # by a fifth of an EPS_KLC while the rotations are near-exact, and the result says so
+    # by a fifth of an EPS_KLC while the rotations are near-exact: by default the group is the
+    # rotations, the mirrors' distortions are in the diagnostics, and one warning says so
     v, f, _ = armed_ball(8, chiral=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = detect_symmetries(v, f)
     assert len(caught) == 1 and "near-symmetries" in str(caught[0].message)
-    assert "8 rotations alone" in str(caught[0].message)
+    assert "left out, the group is the 8 rotations" in str(caught[0].message)
+    assert (res.group.name, res.group.order) == ("C8", 8) and not res.group.reversing.any()
+    assert check_group(torch.as_tensor(res.group.table)).is_group
     mirrors = res.diagnostics.group.near_symmetry_coset
     assert mirrors is not None and len(mirrors) == 8 and min(mirrors) > 0.1
+    # near_mirrors="keep" reports the whole near-group, still flagged
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept = detect_symmetries(v, f, config=DetectConfig(group=GroupConfig(near_mirrors="keep")))
+    assert (kept.group.name, kept.group.order) == ("C8v", 16)
+    assert len(caught) == 1 and "8 rotations alone" in str(caught[0].message)

@@ -1,6 +1,7 @@
 """The group path on a wider set of shapes with exactly known groups: D_nh star slabs
 of several n and thicknesses, C_nv balls with 4-12 drooping arms, chiral C_n, D_n twisted blades,
-a subdivided box, bent and swept versions (``tests/shapes.py``, ``GROUP_SHAPES``).
+a subdivided box, bent versions (``tests/shapes.py``, ``GROUP_SHAPES``; the swept arms, whose
+mirrors hold only approximately, are measured in ``scripts/group_shapes_table.py``, not checked).
 
 Each detected element is matched to a true one (``eval.groups.element_rates``: the share of 100
 evenly spaced vertices whose image lies within sqrt(area / (20 pi)) of the true image), no element

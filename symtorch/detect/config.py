@@ -154,6 +154,16 @@ class GroupConfig:
         near_miss_ratio, n_near_misses: at most this many candidates the coarse screen rejected
             by at most this ratio of ``max_distortion`` are measured exactly too (the coarse basis
             can distort what the refined one does not); 0: none.
+        near_mirrors: where the orientation-reversing elements are a near-symmetry riding on
+            near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`:
+            an order of magnitude more distorted), ``'drop'`` reports the rotations alone as the
+            group (the mirrors' distortions stay in ``diagnostics.group.near_symmetry_coset``);
+            ``'keep'`` reports the whole group with them.
+        merged_gap: where the group found has no element of order above 2 but the spectrum has
+            multiplicities (``group_path.has_multiplicities``: 2-D eigenspaces no such group
+            explains), the path runs again in bands merged across gaps below this many local
+            spacings (a near-isometry splits the eigenspaces its rotations mix), and the larger
+            group is kept; 0: never.
     """
 
     refine: str = "zoomout"
@@ -173,10 +183,16 @@ class GroupConfig:
     alternative_gap: float = 0.1
     near_miss_ratio: float = 1.25
     n_near_misses: int = 4
+    near_mirrors: str = "drop"
+    merged_gap: float = 1.0
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):
             raise ValueError(f"refine must be 'zoomout' or 'icp', got {self.refine!r}")
+        if self.near_mirrors not in ("drop", "keep"):
+            raise ValueError(f"near_mirrors must be 'drop' or 'keep', got {self.near_mirrors!r}")
+        if self.merged_gap < 0:
+            raise ValueError(f"merged_gap must be at least 0, got {self.merged_gap!r}")
 
 
 # The keywords ``detect_symmetries`` took before ``config=`` existed, and the reflection-path field

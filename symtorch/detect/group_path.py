@@ -42,7 +42,8 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
     composition of their *maps* (``groups.largest_subgroup``); table, inverses, orders and name
     (``groups.group_info``), with orientation flags that are a homomorphism of the table and agree
     best with the per-element votes (mirrors an order of magnitude more distorted than near-exact
-    rotations are kept, flagged and warned about: :func:`near_symmetry_coset`); elements in the
+    rotations are a near-symmetry: left out of the group by default, with one warning and their
+    distortions in the diagnostics, :func:`near_symmetry_coset`); elements in the
     order of the paper's Table 3 (identity, rotation powers, reflection coset).
 
 The confidence of an element is ``exp(-distortion^2)``. Knobs: :class:`~symtorch.detect.config.GroupConfig`.
@@ -84,7 +85,11 @@ log = logging.getLogger(__name__)
 
 __all__ = ["detect_group", "GroupBasis", "PointSet", "group_basis", "invariant_point_set",
            "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives",
-           "group_of_elements", "near_symmetry_coset", "has_multiplicities"]
+           "group_of_elements", "near_symmetry_coset", "has_multiplicities", "unexplained_multiplicities"]
+
+
+#: the bands' split (``spectrum.eigen_bands``' default): gaps above this share of the local spacing
+BAND_GAP = 0.3
 
 
 class GroupBasis(NamedTuple):
@@ -141,10 +146,19 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
         coarse elements did not converge, candidate tuples were truncated, a geodesic fallback),
         saying what that means for the group returned.
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=config, device=device,
-                               solver=solver, min_order=min_order, timer=timer)
+    cfg = GroupConfig() if config is None else config
+
+    def attempt(rel_gap: float) -> tuple[SymmetryResult, list]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=cfg, device=device,
+                                 solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap), caught
+
+    result, caught = attempt(BAND_GAP)
+    if cfg.merged_gap > 0 and unexplained_multiplicities(result, _at_most(spectrum.to("cpu"), cfg.n_eigen).evals, k):
+        merged, caught_m = attempt(cfg.merged_gap)
+        if merged.group.order > result.group.order:
+            result, caught = merged, caught_m
     for w in caught:  # other categories (a library's deprecation notice) pass through as they were
         if not issubclass(w.category, UserWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -181,18 +195,31 @@ def _summary_warning(messages: list, result: SymmetryResult) -> str | None:
             f" found, but " + "; ".join(what))
 
 
+def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 20) -> bool:
+    """Whether the group found leaves the spectrum's repeated eigenvalues ``evals [K]`` unexplained:
+    every element of order <= 2 (all irreducible representations 1-D, so no symmetry-forced
+    multiplicity), while the low spectrum is dominated by 2-D bands (:func:`has_multiplicities`).
+    A near-isometry (a bend) splits the eigenspaces its rotations mix by up to about one local
+    spacing; with those bands split, block-diagonal matrices cannot carry the rotations, and only
+    their 1-D subgroup is found. False for a continuous symmetry (its result has no finite group)."""
+    if result.continuous or int(result.group.orders.max()) > 2:
+        return False
+    return has_multiplicities(evals, k)
+
+
 def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, config: GroupConfig | None,
-                  device, solver: GeodesicSolver | None, min_order: int, timer) -> SymmetryResult:
-    """:func:`detect_group` without its warning summary."""
+                  device, solver: GeodesicSolver | None, min_order: int, timer,
+                  rel_gap: float = BAND_GAP) -> SymmetryResult:
+    """:func:`detect_group` without its warning summary, in bands split at ``rel_gap``."""
     cfg = GroupConfig() if config is None else config
     lap = timer.lap if timer is not None else (lambda name: None)
     dev = torch.device("cpu") if device is None else torch.device(device)
     spectrum = _at_most(spectrum.to("cpu"), cfg.n_eigen)
-    basis = group_basis(spectrum.evals, k, k_refine, cfg.refine)
+    basis = group_basis(spectrum.evals, k, k_refine, cfg.refine, rel_gap)
     verts_unit = np.asarray(verts, dtype=np.float64) * spectrum.scale
     solver = GeodesicSolver(verts_unit, faces, backend="batched") if solver is None else solver
     diag = GroupDiagnostics(k0=basis.k0, k_refine=basis.k_refine, m=basis.m,
-                            bands0=[len(b) for b in basis.bands0])
+                            bands0=[len(b) for b in basis.bands0], band_gap=rel_gap)
 
     def trivial(why: str, continuous: bool = False) -> SymmetryResult:
         return _trivial_result(spectrum, basis, replace(diag, reason=why), continuous, timer)
@@ -252,7 +279,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
-    symmetries, group, diag = group_of_elements(elements, geo, faces, diag)
+    symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors)
     lap("group")
     return SymmetryResult(symmetries, spectrum, _bands_upto(basis.bands, basis.k_refine), group=group,
                           timings=dict(timer.timings) if timer is not None else {},
@@ -260,9 +287,11 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
 
 
 # ------------------------------------------------------------------------------------------ stages
-def group_basis(evals: Tensor, k: int, k_refine: int, refine: str = "zoomout") -> GroupBasis:
-    """The coarse and refined basis sizes (band ends) and the largest coarse band."""
-    bands = solved_bands(evals)
+def group_basis(evals: Tensor, k: int, k_refine: int, refine: str = "zoomout",
+                rel_gap: float = BAND_GAP) -> GroupBasis:
+    """The coarse and refined basis sizes (band ends) and the largest coarse band, in the solved
+    bands split at ``rel_gap`` local spacings (``spectrum.eigen_bands``)."""
+    bands = solved_bands(evals, rel_gap)
     bands0, k0 = _coarse_bands(bands, k)
     kf = k0 if refine == "icp" else band_boundary(bands, k_refine)
     return GroupBasis(bands, bands0, k0, kf, max(len(b) for b in bands0))
@@ -388,8 +417,10 @@ def near_symmetry_coset(reversing, distortion) -> bool:
     one size; where every rotation is near-exact and the mirrors are an order of magnitude more
     distorted, the mirrors are a near-symmetry: either a shape made chiral by small features (the
     exact group is the rotations) or mirrors that hold only approximately (arms swept sideways by a
-    near-isometry). The two read alike (BENCHMARKS.md, "Wider shapes"), so the group path keeps
-    the mirrors and says so (diagnostics, one warning). True: the reversing elements' median
+    near-isometry). The two read alike (BENCHMARKS.md, "Wider shapes"); both are measured
+    departures from the shape's own exactness, which its rotations show, so by default the group
+    path reports the rotations as the group and the mirrors in the diagnostics, with one warning
+    (``GroupConfig.near_mirrors``). True: the reversing elements' median
     distortion exceeds :data:`COSET_MIN_DISTORTION` and :data:`COSET_RATIO` times the median of the non-identity
     rotations' (at least :data:`COSET_FLOOR`). False where either half is empty (Cs keeps its
     mirror: nothing to compare it with).
@@ -410,27 +441,41 @@ def _by_orientation(reversing, distortion) -> tuple[list[float], list[float]]:
     return [d for d, r in pairs[1:] if not r], [d for d, r in pairs if r]
 
 
-def group_of_elements(elements: list[Element], geo: Geometry, faces,
-                      diag: GroupDiagnostics) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
+def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
+                      near_mirrors: str = "drop") -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
-    name, and the elements in the paper's order (Table 3)."""
+    name, and the elements in the paper's order (Table 3). Where the orientation-reversing
+    elements are a near-symmetry (:func:`near_symmetry_coset`), ``near_mirrors='drop'`` leaves
+    them out: the group is the rotations, an index-2 subgroup."""
     x_unit = geo.verts
-    keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
-                                   geo.score_samples)
+    faces_t = torch.as_tensor(faces)
+
+    def closed_subset(els):
+        return largest_subgroup([e.p2p for e in els], [e.distortion for e in els], x_unit, geo.score_samples)
+
+    keep, table = closed_subset(elements)
     if len(keep) < len(elements):
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
-    rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, torch.as_tensor(faces))
-                                         for e in elements])
+    rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
     dist = [e.distortion for e in elements]
     if near_symmetry_coset(rev, dist):
         rot, mir = _by_orientation(rev, dist)
         diag = replace(diag, near_symmetry_coset=[round(d, 4) for d in mir])
-        warnings.warn(f"the {len(mir)} orientation-reversing elements are near-symmetries riding on "
-                      f"near-exact rotations (median distortion {np.median(mir):.3f} against "
-                      f"{np.median(rot):.3f} EPS_KLC): kept, but the exact group may be the "
-                      f"{len(rot) + 1} rotations alone (diagnostics.group.near_symmetry_coset)",
-                      stacklevel=2)
+        said = (f"the {len(mir)} orientation-reversing elements are near-symmetries riding on "
+                f"near-exact rotations (median distortion {np.median(mir):.3f} against "
+                f"{np.median(rot):.3f} EPS_KLC)")
+        if near_mirrors == "drop":
+            elements = [e for e, r in zip(elements, rev) if not r]
+            _, table = closed_subset(elements)  # the rotations: a subgroup, every one kept
+            rev = [False] * len(elements)
+            dist = [e.distortion for e in elements]
+            warnings.warn(f"{said}: left out, the group is the {len(elements)} rotations "
+                          f"(GroupConfig(near_mirrors='keep') keeps them; their distortions: "
+                          f"diagnostics.group.near_symmetry_coset)", stacklevel=2)
+        else:
+            warnings.warn(f"{said}: kept, but the exact group may be the {len(rot) + 1} rotations "
+                          f"alone (diagnostics.group.near_symmetry_coset)", stacklevel=2)
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
     table, rev = torch.as_tensor(table, dtype=torch.long), torch.as_tensor(rev, dtype=torch.bool)
     order = canonical_order(table, rev, dist)

@@ -139,7 +139,8 @@ class GroupDiagnostics:
 
     Attributes:
         k0, k_refine: coarse and refined basis sizes; m: largest band of the coarse basis;
-            bands0: band sizes of the coarse basis.
+            bands0: band sizes of the coarse basis; band_gap: the gap, in local spacings, above
+            which the bands split (``GroupConfig.merged_gap`` where the merged bands were kept).
         n_points: invariant points; n_points_with_partner: those with a descriptor partner.
         continuous_test: the continuous-symmetry test's measurements.
         tuple_size, n_source_tuples: candidate tuples; n_candidates_before / n_candidates: ordered
@@ -160,6 +161,7 @@ class GroupDiagnostics:
     k_refine: int
     m: int
     bands0: list[int]
+    band_gap: float = 0.3
     n_points: int = 0
     continuous_test: dict | None = None
     n_points_with_partner: int | None = None
