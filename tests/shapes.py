@@ -226,6 +226,9 @@ GROUP_SHAPES = [
     ("arms8_bent4", lambda: armed_ball(8), "C8v", 16, 4.0),
     ("arms8_bent8", lambda: armed_ball(8), "C8v", 16, 8.0),
     ("chiral8_bent4", lambda: armed_ball(8, chiral=True), "C8", 8, 4.0),
+    ("arms6_bent3", lambda: armed_ball(6), "C6v", 12, 3.0),  # the retry's relaxed descriptor gate
+    ("arms10_bent5", lambda: armed_ball(10), "C10v", 20, 5.0),
+    ("arms5_bent3", lambda: armed_ball(5), "C5v", 10, 3.0),
 ]
 
 

@@ -7,7 +7,8 @@ Each detected element is matched to a true one (``eval.groups.element_rates``: t
 evenly spaced vertices whose image lies within sqrt(area / (20 pi)) of the true image), no element
 may be spurious, and the group's name, order, element orders and orientation are the truth's.
 The quick default run has the thin four-pointed star (the mirror between the caps) and the box, CI
-adds the thin five-pointed star and the eight arms (``extended``); the rest is ``slow``.
+adds the thin five-pointed star, the eight arms and the six arms bent at R = 3 (the merged-band
+retry, ``extended``); the rest is ``slow``.
 """
 import warnings
 
@@ -26,7 +27,7 @@ from shapes import GROUP_SHAPES, bend, matrix_order, star_slab, subdivided_box  
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = {"star4_thin", "box"}  # the quick run; CI (extended) adds these two, the rest is slow
-EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent"}
+EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent", "arms6_bent3"}
 
 
 def _params():

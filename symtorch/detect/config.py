@@ -163,7 +163,8 @@ class GroupConfig:
             multiplicities (``group_path.has_multiplicities``: 2-D eigenspaces no such group
             explains), the path runs again in bands merged across gaps below this many local
             spacings (a near-isometry splits the eigenspaces its rotations mix), and the larger
-            group is kept; 0: never.
+            group is kept; 0: never. merged_desc_tol: the descriptor gate's ``desc_tol`` in that run
+            (at least ``desc_tol``): the near-isometry moves the descriptors of true partners too.
     """
 
     refine: str = "zoomout"
@@ -185,6 +186,7 @@ class GroupConfig:
     n_near_misses: int = 4
     near_mirrors: str = "drop"
     merged_gap: float = 1.0
+    merged_desc_tol: float = 1.2
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):

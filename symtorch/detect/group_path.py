@@ -148,15 +148,16 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
     """
     cfg = GroupConfig() if config is None else config
 
-    def attempt(rel_gap: float) -> tuple[SymmetryResult, list]:
+    def attempt(rel_gap: float, run_cfg: GroupConfig) -> tuple[SymmetryResult, list]:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=cfg, device=device,
+            return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=run_cfg, device=device,
                                  solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap), caught
 
-    result, caught = attempt(BAND_GAP)
+    result, caught = attempt(BAND_GAP, cfg)
     if cfg.merged_gap > 0 and unexplained_multiplicities(result, _at_most(spectrum.to("cpu"), cfg.n_eigen).evals, k):
-        merged, caught_m = attempt(cfg.merged_gap)
+        # the near-isometry that splits the bands moves the descriptors too: the gate is relaxed
+        merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol)))
         if merged.group.order > result.group.order:
             result, caught = merged, caught_m
     for w in caught:  # other categories (a library's deprecation notice) pass through as they were
