@@ -4,6 +4,7 @@
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py arms chiral  # rows whose name contains a word
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --partners
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group partner_radius=0
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --remesh 3000        # every row remeshed (pyacvd)
 
 The shapes are ``tests/shapes.py``'s ``GROUP_SHAPES`` (what ``tests/test_group_shapes.py`` checks)
 and the shapes of the measured limit, :data:`LIMITS`. Per shape, as the tests score it:
@@ -12,7 +13,9 @@ matched within sqrt(area / (20 pi)) on >= 95 % of 100 evenly spaced vertices and
 (``eval.groups.element_rates``), the warnings, the median distortion of the group path's rotations
 and of its orientation-reversing elements (``diagnostics.group.distortion``, EPS_KLC), and the
 wall and CPU seconds of the detection. ``--bend R`` bends the rows chosen around a cylinder of
-radius R instead of their own; ``--group KEY=VALUE`` sets a ``GroupConfig`` field; ``--partners``
+radius R instead of their own; ``--remesh N`` remeshes each shape (before its bend) to about N
+vertices with ACVD, so that no symmetry maps the triangulation onto itself (the truth: the nearest
+remeshed vertex to each transformed one); ``--group KEY=VALUE`` sets a ``GroupConfig`` field; ``--partners``
 adds, per shape, how the group path's descriptor gate (``candidates.partner_mask``) treats the true
 partners among its invariant points: the largest descriptor ratio of a point and its image under a
 true element (``candidates.descriptor_ratios``; the gate admits a pair up to ``desc_tol``), and the
@@ -49,10 +52,11 @@ from symtorch.sampling import farthest_point_sampling  # noqa: E402
 from symtorch.units import EPS_KLC  # noqa: E402
 from symtorch.eval.groups import element_rates  # noqa: E402
 from symtorch.geodesics import GeodesicSolver  # noqa: E402
+from symtorch.remesh import remesh_acvd  # noqa: E402
 from symtorch.shapes import symmetry_maps  # noqa: E402
 
 # the measured limit (BENCHMARKS.md, "Wider shapes"): the swept arms' mirrors hold only
-# approximately (an order of magnitude more distorted than their rotations, as the chiral arms'
+# approximately (many times more distorted than their rotations, as the chiral arms'
 # are), so they are reported as a near-symmetry and the group as the rotations (the six swept arms
 # lose them before that); bends the merged bands do not recover (six arms at R = 4: the spectrum
 # shows no multiplicities at the bands' 0.3; six and five chiral arms at R = 3: a mirror, spurious)
@@ -121,6 +125,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("words", nargs="*", help="only the rows whose name contains one of these")
     ap.add_argument("--bend", type=float, default=None, help="bend radius of the rows chosen (0: flat)")
+    ap.add_argument("--remesh", type=int, default=None, metavar="N",
+                    help="remesh each shape to about N vertices with ACVD first (symtorch.remesh.remesh_acvd, "
+                         "pip install pyacvd): the triangulation no longer symmetric, the truth by nearest vertices")
     ap.add_argument("--group", nargs="*", default=[], metavar="KEY=VALUE", help="GroupConfig fields")
     ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
     ap.add_argument("--truth", action="store_true", help="the true elements' distortion, the screen's "
@@ -143,6 +150,9 @@ def main() -> None:
             radius = args.bend
             name = f"{name.removesuffix('_bent')} bent R={radius:g}" if radius else f"{name} flat"
         v0, f, mats = build()
+        if args.remesh:
+            v0, f = remesh_acvd(v0, f, n_verts=args.remesh, subdivide=3)
+            name = f"{name} ACVD"
         v = bend(v0, radius) if radius else v0
         t0, c0 = time.perf_counter(), time.process_time()
         with warnings.catch_warnings(record=True) as caught:

@@ -166,6 +166,86 @@ def subdivided_box(extents=(1.0, 0.6, 0.3), edge: float = 0.06):
             [np.asarray(x, dtype=np.float64) for x in mats])
 
 
+def _trimesh_arrays(mesh, edge: float):
+    """A trimesh mesh subdivided to ``edge`` and welded: (verts [V, 3] float64, faces [F, 3] int64)."""
+    import trimesh
+
+    v, f = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge)
+    m = trimesh.Trimesh(v, f, process=True)  # merge the vertices the subdivision duplicated
+    return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
+
+
+def extruded_polygon(n: int = 5, height: float = 0.25, inner: float | None = 0.45, edge: float = 0.06):
+    """D_nh, built as a user would: ``trimesh.creation.extrude_polygon`` of an n-pointed star
+    (``inner``: the inner radius; None: the regular n-gon) of radius 1, centred, subdivided to
+    ``edge`` (the caps' triangulation is long thin triangles, nothing symmetric about it)."""
+    import trimesh
+    from shapely.geometry import Polygon
+
+    if inner is None:
+        pts = [(math.cos(2 * math.pi * i / n), math.sin(2 * math.pi * i / n)) for i in range(n)]
+    else:
+        pts = [((1.0 if i % 2 == 0 else inner) * math.cos(math.pi * i / n),
+                (1.0 if i % 2 == 0 else inner) * math.sin(math.pi * i / n)) for i in range(2 * n)]
+    m = trimesh.creation.extrude_polygon(Polygon(pts), height)
+    m.apply_translation([0, 0, -height / 2])
+    v, f = _trimesh_arrays(m, edge)
+    return v, f, group_mats(n, vertical_mirrors=True, horizontal_mirror=True)
+
+
+def primitive_union(kind: str = "table", edge: float = 0.07):
+    """Unions of trimesh primitives (``trimesh.boolean.union``, manifold engine), subdivided:
+    ``"table"`` a square top on four round legs (C4v), ``"plus"`` two crossed bars (D4h),
+    ``"tripod"`` a ball with three tilted capsule legs (C3v)."""
+    import trimesh
+
+    rot = trimesh.transformations.rotation_matrix
+    if kind == "table":
+        parts = [trimesh.creation.box([1.2, 1.2, 0.12], transform=trimesh.transformations.translation_matrix([0, 0, 0.5]))]
+        parts += [trimesh.creation.cylinder(radius=0.07, height=1.0, sections=16,
+                                            transform=trimesh.transformations.translation_matrix([0.45 * sx, 0.45 * sy, 0]))
+                  for sx in (-1, 1) for sy in (-1, 1)]
+        mats = group_mats(4, vertical_mirrors=True)
+    elif kind == "plus":
+        parts = [trimesh.creation.box([1.6, 0.4, 0.3]), trimesh.creation.box([0.4, 1.6, 0.3])]
+        mats = group_mats(4, vertical_mirrors=True, horizontal_mirror=True)
+    elif kind == "tripod":
+        parts = [trimesh.creation.icosphere(3, radius=0.5)]
+        for k in range(3):
+            c = trimesh.creation.capsule(height=0.9, radius=0.12, count=[16, 16])
+            c.apply_transform(rot(math.radians(50), [0, 1, 0]))
+            c.apply_translation([0.45, 0, -0.3])
+            c.apply_transform(rot(2 * math.pi * k / 3, [0, 0, 1]))
+            parts.append(c)
+        mats = group_mats(3, vertical_mirrors=True)
+    else:
+        raise ValueError(f"kind must be 'table', 'plus' or 'tripod', got {kind!r}")
+    v, f = _trimesh_arrays(trimesh.boolean.union(parts, engine="manifold"), edge)
+    return v, f, mats
+
+
+def _jittered(build):
+    """``build()`` with its vertices moved by :func:`jitter`."""
+    v, f, mats = build()
+    return jitter(v, f), f, mats
+
+
+def jitter(verts: np.ndarray, faces: np.ndarray, amount: float = 0.35, seed: int = 0) -> np.ndarray:
+    """The same surface sampled asymmetrically: every vertex moved by up to ``amount`` of its mean
+    edge length in its tangent plane (seeded), so that no symmetry maps the triangulation onto
+    itself, as after a remesh; the shape moves only to second order."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    edges = mesh.edges_unique
+    lengths = np.linalg.norm(verts[edges[:, 0]] - verts[edges[:, 1]], axis=1)
+    mean_len = np.bincount(edges.ravel(), np.repeat(lengths, 2), len(verts)) / np.bincount(edges.ravel(), minlength=len(verts))
+    n = mesh.vertex_normals
+    d = np.random.default_rng(seed).uniform(-1, 1, verts.shape)
+    d -= (d * n).sum(1, keepdims=True) * n  # tangential
+    return verts + amount * mean_len[:, None] * d
+
+
 def bend(verts: np.ndarray, radius: float = 4.0) -> np.ndarray:
     """Wrap the x axis around a cylinder: the extrinsic symmetry goes, the intrinsic one stays (up
     to the stretch of the shape's thickness)."""
@@ -229,6 +309,17 @@ GROUP_SHAPES = [
     ("arms6_bent3", lambda: armed_ball(6), "C6v", 12, 3.0),  # the retry's relaxed descriptor gate
     ("arms10_bent5", lambda: armed_ball(10), "C10v", 20, 5.0),
     ("arms5_bent3", lambda: armed_ball(5), "C5v", 10, 3.0),
+    # added 2026-12-07: built with trimesh as a user would (an extruded polygon's coarse closure
+    # took 37 s before its outliers were held back), and sampled asymmetrically (jitter: the
+    # chiral arms' mirrors then distort 3x their rotations, not 30x, and came out C8v)
+    ("star5_extruded", lambda: extruded_polygon(5, 0.25), "D5h", 20, 0),
+    ("oct_prism_extruded", lambda: extruded_polygon(8, 0.3, inner=None), "D8h", 32, 0),
+    ("table_union", lambda: primitive_union("table", edge=0.09), "C4v", 8, 0),
+    ("plus_union", lambda: primitive_union("plus"), "D4h", 16, 0),
+    ("tripod_union", lambda: primitive_union("tripod"), "C3v", 6, 0),
+    ("chiral8_jitter", lambda: _jittered(lambda: armed_ball(8, chiral=True)), "C8", 8, 0),
+    ("arms8_jitter", lambda: _jittered(lambda: armed_ball(8)), "C8v", 16, 0),
+    ("star5_jitter", lambda: _jittered(lambda: star_slab(5)), "D5h", 20, 0),
 ]
 
 

@@ -132,3 +132,28 @@ def test_an_alternative_that_is_another_element_joins_and_the_maps_are_closed():
     for p in true:  # every true element is found once, within a vertex or two
         gaps = torch.stack([(geo.verts[e.p2p] - geo.verts[p]).norm(dim=1).mean() for e in whole])
         assert int((gaps < 0.5 * EPS_KLC).sum()) == 1, gaps.tolist()
+
+
+def test_the_coarse_closure_holds_back_elements_far_more_distorted_than_the_rest():
+    """A spurious element just under the screen, composed with a whole group, would bring its coset
+    through the screen (each product as distorted as itself): it is no factor of the coarse
+    closure, and the closure then reports itself not closed, so the exact maps close it instead."""
+    from types import SimpleNamespace
+
+    from symtorch.detect.config import GroupConfig
+    from symtorch.detect.group_elements import CoarseElement, CoarseElements
+
+    geo = SimpleNamespace(evecs=torch.zeros(4, 3, dtype=torch.float64), score_samples=torch.arange(4))
+    coarse = CoarseElements(geo, [range(0, 1), range(1, 3)], 3, GroupConfig())
+
+    def with_distortions(ds):
+        coarse.elements = coarse.elements[:1] + [CoarseElement(torch.eye(3), torch.arange(4), d) for d in ds]
+        return coarse.factors()
+
+    # twenty near-exact elements and four at 0.24: those four are held back
+    assert with_distortions([0.02] * 19 + [0.24] * 4) == list(range(20))
+    # one size, however large (a bent shape's group), or everything small: all compose
+    assert with_distortions([0.2, 0.22, 0.19, 0.23]) == list(range(5))
+    assert with_distortions([0.001, 0.002, 0.03]) == list(range(4))
+    # too few to tell a typical element from an outlier
+    assert with_distortions([0.01, 0.24]) == [0, 1, 2]

@@ -241,6 +241,10 @@ def test_near_symmetry_coset_rule():
     rev = [False, False, False, False, True, True, True, True]  # C4v: identity, 3 rotations, 4 mirrors
     # eight chiral arms: rotations near-exact, the mirrors a fifth of a radius off (measured 0.008 / 0.199)
     assert near_symmetry_coset(rev, [0.0, 0.004, 0.006, 0.005, 0.24, 0.25, 0.25, 0.24])
+    # the same arms remeshed: the rotations carry the triangulation's noise (0.045), the mirrors 0.21
+    assert near_symmetry_coset(rev, [0.0, 0.045, 0.046, 0.044, 0.21, 0.22, 0.2, 0.21])
+    # a true group bent or remeshed: both halves of one size, above the floor
+    assert not near_symmetry_coset(rev, [0.0, 0.18, 0.2, 0.19, 0.2, 0.21, 0.19, 0.2])
     # one true group: both halves of one size, or both small (twelve arms: 0.007 / 0.032)
     assert not near_symmetry_coset(rev, [0.0, 0.05, 0.07, 0.06, 0.04, 0.05, 0.05, 0.04])
     assert not near_symmetry_coset(rev, [0.0, 0.007, 0.007, 0.007, 0.03, 0.03, 0.035, 0.03])

@@ -156,7 +156,7 @@ class GroupConfig:
             can distort what the refined one does not); 0: none.
         near_mirrors: where the orientation-reversing elements are a near-symmetry riding on
             near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`:
-            an order of magnitude more distorted), ``'drop'`` reports the rotations alone as the
+            several times more distorted), ``'drop'`` reports the rotations alone as the
             group (the mirrors' distortions stay in ``diagnostics.group.near_symmetry_coset``);
             ``'keep'`` reports the whole group with them.
         merged_gap: where the group found has no element of order above 2 but the spectrum has

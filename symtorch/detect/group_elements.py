@@ -214,19 +214,20 @@ class CoarseElements:
         kept = [o for i, o in enumerate(self.near_misses) if i not in same] + [e]
         self.near_misses = sorted(kept, key=lambda o: o.distortion)[:self.cfg.n_near_misses]
 
-    def duplicate_of(self, images: Tensor, C0: Tensor) -> int:
-        """An accepted element with the same images (mean gap < SAME_MAP_GAP eps) or matrix (< DEFAULT_TOL)."""
+    def duplicate_of(self, images: Tensor, C0: Tensor, same_gap: float = SAME_MAP_GAP) -> int:
+        """An accepted element with the same images (mean gap < ``same_gap`` eps) or matrix (< DEFAULT_TOL)."""
         gap = image_gaps(self.geo.verts, torch.stack([e.images for e in self.elements]), images)  # [G]
         j = int(gap.argmin())
-        if float(gap[j]) < SAME_MAP_GAP * EPS_KLC:
+        if float(gap[j]) < same_gap * EPS_KLC:
             return j
         # maps can differ where an element is ill-pinned; the matrices then still agree
         d = _rel_dist(C0[None], torch.stack([e.fmap for e in self.elements]))[0]
         return int(d.argmin()) if float(d.min()) < DEFAULT_TOL else -1
 
-    def add(self, C0: Tensor) -> bool:
-        """Refine a coarse candidate, screen it, and keep it unless it duplicates an element
-        (where it is better than the element it duplicates, it takes that element's place)."""
+    def add(self, C0: Tensor, same_gap: float = SAME_MAP_GAP) -> bool:
+        """Refine a coarse candidate, screen it, and keep it unless it duplicates an element (images
+        within ``same_gap`` KLC radii; where it is better than the element it duplicates, it takes
+        that element's place)."""
         geo = self.geo
         if self.cfg.refine == "icp":  # paper §4.1 step 3: fixed-size spectral ICP on the samples
             E_s = geo.evecs[geo.samples, :self.k0]
@@ -235,7 +236,7 @@ class CoarseElements:
             C0 = zoomout(geo, C0, self.bands0, self.k0)
         dst, img = geo.screen(C0)
         rejected = dst > self.cfg.max_distortion
-        j = -1 if rejected else self.duplicate_of(img, C0)
+        j = -1 if rejected else self.duplicate_of(img, C0, same_gap)
         self.trace.append((round(dst, 3), j))
         if rejected:
             self.rejected.append(round(dst, 3))
@@ -266,16 +267,41 @@ class CoarseElements:
         """
         closed = False
         for _ in range(rounds):
+            factors = self.factors()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                cl = closure(torch.stack([e.fmap for e in self.elements]), tol=DEFAULT_TOL,
+                cl = closure(torch.stack([self.elements[i].fmap for i in factors]), tol=DEFAULT_TOL,
                              max_order=2 * len(self.elements) + 8)
             new = cl.fmaps[cl.added]
             # every product is tried (a list, not a short-circuiting generator)
-            if len(new) == 0 or not any([self.add(block_project(Cn, self.bands0)) for Cn in new]):
-                closed = cl.converged
+            # a product of two coarse maps carries the errors of both: the same map within twice the gap
+            if len(new) == 0 or not any([self.add(block_project(Cn, self.bands0), 2 * SAME_MAP_GAP)
+                                         for Cn in new]):
+                # products with the held-back elements are left to the exact maps
+                closed = cl.converged and len(factors) == len(self.elements)
                 break
         return closed
+
+    def factors(self) -> list[int]:
+        """The elements the coarse closure composes: all, but those an order of magnitude more
+        distorted than the typical element (above :data:`HELD_MIN_DISTORTION` and
+        :data:`HELD_RATIO` times the median non-identity distortion). A spurious element just
+        under the screen would otherwise bring its whole coset through the screen with it (each
+        product as distorted as itself), and the closure would refine hundreds of products; held
+        back, it is measured exactly like the rest, and where it holds, the exact vertex maps close
+        its coset (:func:`upsample_elements` with ``close``)."""
+        d = [e.distortion for e in self.elements[1:]]
+        if len(d) < 3:
+            return list(range(len(self.elements)))
+        cut = max(HELD_MIN_DISTORTION, HELD_RATIO * max(float(np.median(d)), HELD_FLOOR))
+        return [0] + [i for i, x in enumerate(d, 1) if x <= cut]
+
+
+#: :meth:`CoarseElements.factors`: elements above this coarse distortion (KLC radii) ...
+HELD_MIN_DISTORTION = 0.1
+#: ... and this many times the median non-identity one (that at least HELD_FLOOR) are held back
+HELD_RATIO = 10.0
+HELD_FLOOR = 0.01
 
 
 #: An element whose exact distortion is at most this share of ``max_distortion`` is kept as it is:
