@@ -309,6 +309,7 @@ GROUP_SHAPES = [
     ("arms6_bent3", lambda: armed_ball(6), "C6v", 12, 3.0),  # the retry's relaxed descriptor gate
     ("arms10_bent5", lambda: armed_ball(10), "C10v", 20, 5.0),
     ("arms5_bent3", lambda: armed_ball(5), "C5v", 10, 3.0),
+    ("arms6_bent4", lambda: armed_ball(6), "C6v", 12, 4.0),  # the retry at either scale
     # added 2026-12-07: built with trimesh as a user would (an extruded polygon's coarse closure
     # took 37 s before its outliers were held back), and sampled asymmetrically (jitter: the
     # chiral arms' mirrors then distort 3x their rotations, not 30x, and came out C8v)

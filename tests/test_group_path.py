@@ -49,6 +49,12 @@ def test_unexplained_multiplicities():
     assert not unexplained_multiplicities(found([1, 4, 2, 4]), pairs)
     assert not unexplained_multiplicities(found([1, 2, 2, 2]), torch.arange(25, dtype=torch.float64))
     assert not unexplained_multiplicities(found([1], continuous=True), pairs)
+    # pairs in the coarse basis only (a bend splits those of the larger one): too few to send a
+    # shape to the group path first, enough to retry once it has run
+    coarse_pairs = torch.tensor([0.0] + [float(v) for i in range(1, 8) for v in (2 * i - 1, 2 * i - 1)]
+                                + [15.0 + 1.3 * i for i in range(45)], dtype=torch.float64)
+    assert not has_multiplicities(coarse_pairs)
+    assert unexplained_multiplicities(found([1, 2, 2, 2]), coarse_pairs)
 
 
 # --------------------------------------------------------------------------- shapes with known groups
