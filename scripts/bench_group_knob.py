@@ -5,6 +5,7 @@
     OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set n_near_misses=0
     OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set partner_radius=0 n_near_misses=0 \
         --mode group --k-refine 40 --only table.off --runs 6 --wall      # as evaluate_groups.py times it
+    OMP_NUM_THREADS=1 python scripts/bench_group_knob.py --set merged_gap=0 --only blades2 "Watertight 126"
 
 CPU seconds (``--wall``: wall seconds) of ``detect_symmetries`` (``mode="auto"`` or ``--mode``, spectrum included) on the paper's table, the
 SHREC'07 Watertight table 156 (the shapes read from the shared data where present) and some shapes
@@ -34,15 +35,18 @@ SHAPES = ("star5_thin", "star5_thin_bent", "star8_thin", "box", "arms8", "chiral
           "star6_h03_bent3", "arms8_bent4", "chiral8_bent4")
 
 
-def meshes() -> dict:
+def meshes(only: list[str] | None = None) -> dict:
+    """The shapes timed: the default set, or those named in ``only`` (any ``GROUP_SHAPES`` row,
+    ``table.off`` or ``Watertight N``)."""
+    watertight = [n.split()[1] for n in only or [] if n.startswith("Watertight ")] or ["156"]
     out = {}
-    for name, rel in (("table.off", ("wang_huang_pg2017", "table.off")),
-                      ("Watertight 156", ("bim_scb_benchmark", "Watertight", "Meshes", "156.off"))):
+    for name, rel in [("table.off", ("wang_huang_pg2017", "table.off"))] + [
+            (f"Watertight {i}", ("bim_scb_benchmark", "Watertight", "Meshes", f"{i}.off")) for i in watertight]:
         path = shared_path(*rel)
-        if path is not None:
+        if path is not None and (not only or name in only):
             out[name] = load_mesh(path)
     for sid, build, _, _, radius in GROUP_SHAPES:
-        if sid in SHAPES:
+        if (sid in only) if only else (sid in SHAPES):
             v, f, _ = build()
             out[sid] = (bend(v, radius) if radius else v, f)
     return out
@@ -55,7 +59,8 @@ def main() -> None:
     ap.add_argument("--mode", default="auto", choices=["auto", "group"])
     ap.add_argument("--k-refine", type=int, default=100, help="detect_symmetries' k_refine "
                     "(evaluate_groups.py times the group mode at 40)")
-    ap.add_argument("--only", nargs="*", default=None, help="only these shapes")
+    ap.add_argument("--only", nargs="*", default=None,
+                    help="only these shapes (any GROUP_SHAPES row, table.off, 'Watertight N')")
     ap.add_argument("--runs", type=int, default=2)
     ap.add_argument("--wall", action="store_true", help="wall seconds instead of CPU seconds")
     args = ap.parse_args()
@@ -67,9 +72,7 @@ def main() -> None:
           f"mode={args.mode}, {'wall' if args.wall else 'CPU'} s")
     clock = time.perf_counter if args.wall else time.process_time
     totals = {k: 0.0 for k in configs}
-    for name, (v, f) in meshes().items():
-        if args.only and name not in args.only:
-            continue
+    for name, (v, f) in meshes(args.only).items():
         secs = {k: [] for k in configs}
         groups = {}
         for run in range(args.runs):

@@ -5,6 +5,7 @@
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --partners
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group partner_radius=0
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --remesh 3000        # every row remeshed (pyacvd)
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --random-arms 12 --seed 1   # random bent arms
 
 The shapes are ``tests/shapes.py``'s ``GROUP_SHAPES`` (what ``tests/test_group_shapes.py`` checks)
 and the shapes of the measured limit, :data:`LIMITS`. Per shape, as the tests score it:
@@ -67,6 +68,22 @@ LIMITS += [("arms4_bent2.5", lambda: armed_ball(4), "C4v", 8, 2.5),
 SHAPES = GROUP_SHAPES + LIMITS
 
 
+def random_bent_arms(n_shapes: int, seed: int) -> list:
+    """Rows of armed balls drawn at random (``--random-arms``): 4-10 arms, 30 % chiral, elevation
+    -30 to -5 degrees, arm length 0.7-1.2, width 0.3-0.4, bent at R = 3.5-8."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for _ in range(n_shapes):
+        n, chiral = int(rng.integers(4, 11)), bool(rng.random() < 0.3)
+        radius = float(rng.choice([3.5, 4, 5, 6, 8]))
+        elev, length, width = float(rng.uniform(-30, -5)), float(rng.uniform(0.7, 1.2)), float(rng.uniform(0.3, 0.4))
+        name = f"{'chiral' if chiral else 'arms'}{n} elev={elev:.0f} len={length:.2f} w={width:.2f} R={radius:g}"
+        build = (lambda n=n, c=chiral, e=elev, ln=length, w=width:
+                 armed_ball(n, chiral=c, elev=e, length=ln, width=w))
+        rows.append((name, build, f"C{n}" if chiral else f"C{n}v", n if chiral else 2 * n, radius))
+    return rows
+
+
 def _median(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3f}" if xs else "–"
 
@@ -127,6 +144,9 @@ def main() -> None:
     ap.add_argument("--remesh", type=int, default=None, metavar="N",
                     help="remesh each shape to about N vertices with ACVD first (symtorch.remesh.remesh_acvd, "
                          "pip install pyacvd): the triangulation no longer symmetric, the truth by nearest vertices")
+    ap.add_argument("--random-arms", type=int, default=None, metavar="N",
+                    help="instead of the table's rows, N bent armed balls drawn at random (--seed)")
+    ap.add_argument("--seed", type=int, default=1, help="--random-arms' seed")
     ap.add_argument("--group", nargs="*", default=[], metavar="KEY=VALUE", help="GroupConfig fields")
     ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
     ap.add_argument("--truth", action="store_true", help="the true elements' distortion, the screen's "
@@ -142,7 +162,8 @@ def main() -> None:
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
           + ("---:|---|---|---:|" if args.truth else ""))
-    for name, build, group, order, radius in SHAPES:
+    rows = random_bent_arms(args.random_arms, args.seed) if args.random_arms else SHAPES
+    for name, build, group, order, radius in rows:
         if args.words and not any(w in name for w in args.words):
             continue
         if args.bend is not None:

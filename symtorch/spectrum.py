@@ -301,7 +301,11 @@ def _exact_rescale(v: np.ndarray) -> float:
     return float(2.0 ** -round(math.log2(span)))
 
 
-def eigen_bands(evals, rel_gap: float = 0.3, window: int = 4) -> list[range]:
+#: the gap, as a share of the local spacing, above which :func:`eigen_bands` starts a new band
+BAND_REL_GAP = 0.3
+
+
+def eigen_bands(evals, rel_gap: float = BAND_REL_GAP, window: int = 4) -> list[range]:
     """Group consecutive eigenvalues into bands of (near-)repeated eigenvalues.
 
     A new band starts between ``evals[i]`` and ``evals[i+1]`` when their gap is larger than
@@ -347,7 +351,7 @@ def bands_from_sizes(sizes) -> list[range]:
     return bands
 
 
-def solved_bands(evals, rel_gap: float = 0.3) -> list[range]:
+def solved_bands(evals, rel_gap: float = BAND_REL_GAP) -> list[range]:
     """``eigen_bands(evals, rel_gap)`` without the last band, which the eigensolve may have cut (kept
     when it is the only one): the bands a symmetry matrix can be block-diagonal over."""
     bands = eigen_bands(evals, rel_gap)

@@ -157,13 +157,10 @@ def subdivided_box(extents=(1.0, 0.6, 0.3), edge: float = 0.06):
     triangulation is not mirror-symmetric; its metric is, exactly)."""
     import trimesh
 
-    m = trimesh.creation.box(list(extents))
-    v, f = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, edge)
-    m = trimesh.Trimesh(v, f, process=True)  # merge the vertices the subdivision duplicated
+    v, f = _trimesh_arrays(trimesh.creation.box(list(extents)), edge)
     mats = [np.diag(s) for s in ([1, 1, 1], [-1, 1, 1], [1, -1, 1], [1, 1, -1], [1, -1, -1], [-1, 1, -1],
                                  [-1, -1, 1], [-1, -1, -1])]
-    return (np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64),
-            [np.asarray(x, dtype=np.float64) for x in mats])
+    return v, f, [np.asarray(x, dtype=np.float64) for x in mats]
 
 
 def _trimesh_arrays(mesh, edge: float):
@@ -311,8 +308,9 @@ GROUP_SHAPES = [
     ("arms5_bent3", lambda: armed_ball(5), "C5v", 10, 3.0),
     ("arms6_bent4", lambda: armed_ball(6), "C6v", 12, 4.0),  # the retry at either scale
     # added 2026-12-07: built with trimesh as a user would (an extruded polygon's coarse closure
-    # took 37 s before its outliers were held back), and sampled asymmetrically (jitter: the
-    # chiral arms' mirrors then distort 3x their rotations, not 30x, and came out C8v)
+    # ran long before its outliers were held back), and sampled asymmetrically (jitter: the chiral
+    # arms' mirrors then distort a few times their rotations, not tens, and came out C8v;
+    # BENCHMARKS.md, "Wider shapes")
     ("star5_extruded", lambda: extruded_polygon(5, 0.25), "D5h", 20, 0),
     ("oct_prism_extruded", lambda: extruded_polygon(8, 0.3, inner=None), "D8h", 32, 0),
     ("table_union", lambda: primitive_union("table", edge=0.09), "C4v", 8, 0),

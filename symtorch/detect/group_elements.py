@@ -284,8 +284,8 @@ class CoarseElements:
 
     def factors(self) -> list[int]:
         """The elements the coarse closure composes: all, but those an order of magnitude more
-        distorted than the typical element (above :data:`HELD_MIN_DISTORTION` and
-        :data:`HELD_RATIO` times the median non-identity distortion). A spurious element just
+        distorted than the typical element (:func:`far_above` the median non-identity distortion,
+        :data:`HELD_RATIO`). A spurious element just
         under the screen would otherwise bring its whole coset through the screen with it (each
         product as distorted as itself), and the closure would refine hundreds of products; held
         back, it is measured exactly like the rest, and where it holds, the exact vertex maps close
@@ -293,15 +293,24 @@ class CoarseElements:
         d = [e.distortion for e in self.elements[1:]]
         if len(d) < 3:
             return list(range(len(self.elements)))
-        cut = max(HELD_MIN_DISTORTION, HELD_RATIO * max(float(np.median(d)), HELD_FLOOR))
-        return [0] + [i for i, x in enumerate(d, 1) if x <= cut]
+        typical = float(np.median(d))
+        return [0] + [i for i, x in enumerate(d, 1) if not far_above(x, typical, HELD_RATIO)]
 
 
-#: :meth:`CoarseElements.factors`: elements above this coarse distortion (KLC radii) ...
-HELD_MIN_DISTORTION = 0.1
-#: ... and this many times the median non-identity one (that at least HELD_FLOOR) are held back
+#: :meth:`CoarseElements.factors`: elements :func:`far_above` this many times the median are held back
 HELD_RATIO = 10.0
-HELD_FLOOR = 0.01
+#: :func:`far_above`: no distortion (KLC radii) below this is an outlier, and no reference counts
+#: below OUTLIER_FLOOR (near-exact elements differ by the mesh's noise, not by symmetry)
+OUTLIER_MIN_DISTORTION = 0.1
+OUTLIER_FLOOR = 0.01
+
+
+def far_above(distortion: float, reference: float, ratio: float) -> bool:
+    """Whether a distortion (KLC radii) stands out from a reference one: above
+    :data:`OUTLIER_MIN_DISTORTION` and ``ratio`` times the reference (at least :data:`OUTLIER_FLOOR`).
+    The elements of one exact group share the mesh's discretisation, so their distortions are of one
+    size; one far above the rest is a near-symmetry or a spurious element."""
+    return distortion > OUTLIER_MIN_DISTORTION and distortion > ratio * max(reference, OUTLIER_FLOOR)
 
 
 #: An element whose exact distortion is at most this share of ``max_distortion`` is kept as it is:

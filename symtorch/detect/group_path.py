@@ -73,12 +73,13 @@ from ..groups.algebra import cayley_table
 from ..groups.naming import GroupInfo, group_info, kind_of, orientation_score
 from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
 from ..procrustes import block_procrustes
-from ..spectrum import Spectrum, band_boundary, eigen_bands, solved_bands
+from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solved_bands
 from ..units import EPS_KLC
 from .candidates import Pinning, invariant_points, partner_mask, tuple_pairs
 from .config import GroupConfig
 from .constraints import descriptor_coefficients, disk_coefficients
-from .group_elements import CoarseElements, Element, Geometry, batched_icp, upsample_elements, zoomout
+from .group_elements import (CoarseElements, Element, Geometry, batched_icp, far_above, upsample_elements,
+                             zoomout)
 from .result import Diagnostics, GroupDiagnostics, Symmetry, SymmetryResult
 
 log = logging.getLogger(__name__)
@@ -86,10 +87,6 @@ log = logging.getLogger(__name__)
 __all__ = ["detect_group", "GroupBasis", "PointSet", "group_basis", "invariant_point_set",
            "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives",
            "group_of_elements", "near_symmetry_coset", "has_multiplicities", "unexplained_multiplicities"]
-
-
-#: the bands' split (``spectrum.eigen_bands``' default): gaps above this share of the local spacing
-BAND_GAP = 0.3
 
 
 class GroupBasis(NamedTuple):
@@ -154,8 +151,8 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
             return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=run_cfg, device=device,
                                  solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap), caught
 
-    result, caught = attempt(BAND_GAP, cfg)
-    if cfg.merged_gap > 0 and unexplained_multiplicities(result, _at_most(spectrum.to("cpu"), cfg.n_eigen).evals, k):
+    result, caught = attempt(BAND_REL_GAP, cfg)
+    if cfg.merged_gap > 0 and unexplained_multiplicities(result, result.spectrum.evals, k):  # the cut spectrum
         # the near-isometry that splits the bands moves the descriptors too: the gate is relaxed
         merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol)))
         if merged.group.order > result.group.order:
@@ -200,19 +197,19 @@ def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 2
     """Whether the group found leaves the spectrum's repeated eigenvalues ``evals [K]`` unexplained:
     every element of order <= 2 (all irreducible representations 1-D, so no symmetry-forced
     multiplicity), while the low spectrum is dominated by 2-D bands at one of
-    :func:`has_multiplicities`' two scales. A near-isometry (a bend) splits the eigenspaces its rotations mix by up to about one local
-    spacing; with those bands split, block-diagonal matrices cannot carry the rotations, and only
-    their 1-D subgroup is found. False for a continuous symmetry (its result has no finite group)."""
+    :func:`has_multiplicities`' two scales. A near-isometry (a bend) splits the eigenspaces its
+    rotations mix by up to about one local spacing; with those bands split, block-diagonal matrices
+    cannot carry the rotations, and only their 1-D subgroup is found. False for a continuous symmetry (its result has no finite group)."""
     if result.continuous or int(result.group.orders.max()) > 2:
         return False
     # at either scale: the group path has run already, and a bend that splits the pairs of the
-    # larger basis still leaves the coarse one dominated by them (six arms at R = 4: 0.58 / 0.41)
+    # larger basis still leaves the coarse one dominated by them (six arms bent at R = 4)
     return max(multiplicity_shares(evals, k)) >= MULTIPLICITY_SHARE
 
 
 def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, config: GroupConfig | None,
                   device, solver: GeodesicSolver | None, min_order: int, timer,
-                  rel_gap: float = BAND_GAP) -> SymmetryResult:
+                  rel_gap: float = BAND_REL_GAP) -> SymmetryResult:
     """:func:`detect_group` without its warning summary, in bands split at ``rel_gap``."""
     cfg = GroupConfig() if config is None else config
     lap = timer.lap if timer is not None else (lambda name: None)
@@ -291,7 +288,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
 
 # ------------------------------------------------------------------------------------------ stages
 def group_basis(evals: Tensor, k: int, k_refine: int, refine: str = "zoomout",
-                rel_gap: float = BAND_GAP) -> GroupBasis:
+                rel_gap: float = BAND_REL_GAP) -> GroupBasis:
     """The coarse and refined basis sizes (band ends) and the largest coarse band, in the solved
     bands split at ``rel_gap`` local spacings (``spectrum.eigen_bands``)."""
     bands = solved_bands(evals, rel_gap)
@@ -406,29 +403,26 @@ def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tupl
     return reps, [int(c) for c in counts.tolist()]
 
 
-#: near_symmetry_coset's rule: the reversing elements' median distortion (KLC radii) above this ...
-COSET_MIN_DISTORTION = 0.1
-#: ... and this many times the rotations' (each at least COSET_FLOOR): the halves of one true group
-#: read 0.8-1.1 times each other, regular or remeshed; chiral arms' mirrors 3.6-4.8 times their
-#: rotations on ACVD remeshes (25-40 on the regular meshes): BENCHMARKS.md, "Wider shapes"
+#: near_symmetry_coset's rule (``group_elements.far_above``): the reversing elements' median
+#: distortion this many times the rotations': the halves of one true group read about one size,
+#: regular or remeshed, chiral mirrors several times their rotations even on a remesh, whose noise
+#: reaches every element (BENCHMARKS.md, "Wider shapes")
 COSET_RATIO = 2.0
-COSET_FLOOR = 0.01
 
 
 def near_symmetry_coset(reversing, distortion) -> bool:
     """Whether the orientation-reversing elements are a near-symmetry riding on exact rotations.
 
     The elements of one exact group share the mesh's discretisation, so their distortions are of
-    one size (the rotations' and the mirrors' medians within 0.8-1.1 of each other on the shapes
-    measured, on regular meshes and remeshed); where the mirrors are several times more distorted
+    one size, on regular meshes and remeshed; where the mirrors are several times more distorted
     than the rotations, the mirrors are a near-symmetry: either a shape made chiral by small features (the
     exact group is the rotations) or mirrors that hold only approximately (arms swept sideways by a
     near-isometry). The two read alike (BENCHMARKS.md, "Wider shapes"); both are measured
     departures from the shape's own exactness, which its rotations show, so by default the group
     path reports the rotations as the group and the mirrors in the diagnostics, with one warning
     (``GroupConfig.near_mirrors``). True: the reversing elements' median
-    distortion exceeds :data:`COSET_MIN_DISTORTION` and :data:`COSET_RATIO` times the median of the non-identity
-    rotations' (at least :data:`COSET_FLOOR`). False where either half is empty (Cs keeps its
+    distortion is :func:`~.group_elements.far_above` (:data:`COSET_RATIO`) the median of the
+    non-identity rotations'. False where either half is empty (Cs keeps its
     mirror: nothing to compare it with).
 
     Args:
@@ -437,8 +431,7 @@ def near_symmetry_coset(reversing, distortion) -> bool:
     rot, mir = _by_orientation(reversing, distortion)
     if not rot or not mir:
         return False
-    m_rot, m_mir = float(np.median(rot)), float(np.median(mir))
-    return m_mir > COSET_MIN_DISTORTION and m_mir > COSET_RATIO * max(m_rot, COSET_FLOOR)
+    return far_above(float(np.median(mir)), float(np.median(rot)), COSET_RATIO)
 
 
 def _by_orientation(reversing, distortion) -> tuple[list[float], list[float]]:
@@ -455,11 +448,8 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     them out: the group is the rotations, an index-2 subgroup."""
     x_unit = geo.verts
     faces_t = torch.as_tensor(faces)
-
-    def closed_subset(els):
-        return largest_subgroup([e.p2p for e in els], [e.distortion for e in els], x_unit, geo.score_samples)
-
-    keep, table = closed_subset(elements)
+    keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
+                                   geo.score_samples)
     if len(keep) < len(elements):
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
@@ -472,8 +462,12 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
                 f"near-exact rotations (median distortion {np.median(mir):.3f} against "
                 f"{np.median(rot):.3f} EPS_KLC)")
         if near_mirrors == "drop":
-            elements = [e for e, r in zip(elements, rev) if not r]
-            _, table = closed_subset(elements)  # the rotations: a subgroup, every one kept
+            # the rotations: the kernel of the orientation homomorphism, so the table restricts to them
+            rot_idx = [i for i, r in enumerate(rev) if not r]
+            renumber = np.full(len(elements), -1)
+            renumber[rot_idx] = np.arange(len(rot_idx))
+            table = renumber[np.asarray(table)[np.ix_(rot_idx, rot_idx)]]
+            elements = [elements[i] for i in rot_idx]
             rev = [False] * len(elements)
             dist = [e.distortion for e in elements]
             warnings.warn(f"{said}: left out, the group is the {len(elements)} rotations "

@@ -9,7 +9,7 @@ import torch
 from torch import Tensor
 
 from ..groups.naming import GroupInfo
-from ..spectrum import Spectrum
+from ..spectrum import BAND_REL_GAP, Spectrum
 
 __all__ = ["Symmetry", "SymmetryResult", "Diagnostics", "ReflectionDiagnostics", "GroupDiagnostics",
            "Checks", "Trial"]
@@ -161,7 +161,7 @@ class GroupDiagnostics:
     k_refine: int
     m: int
     bands0: list[int]
-    band_gap: float = 0.3
+    band_gap: float = BAND_REL_GAP
     n_points: int = 0
     continuous_test: dict | None = None
     n_points_with_partner: int | None = None
