@@ -20,9 +20,11 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
    target tuples (``C(n, m)^2 m!``); one source tuple already pins each symmetry, so a few
    well-spread source tuples are paired with every ordered target tuple of ``P``, pruned on the fly
    by the geodesic ratio test (``delta``) and by descriptor agreement.
-5. **procrustes** (:func:`candidate_fmaps`): one batched ``block_procrustes`` over all candidates,
+5. **procrustes** (:func:`candidate_fmaps`): batched ``block_procrustes`` over all candidates,
    with the reflection path's constraints (geodesic disks around each tuple point, the descriptors
-   unchanged); the ``max_candidates`` best fits go on.
+   unchanged), and again with dipoles added (each tuple point's disk tilted towards the next,
+   ``constraints.dipole_coefficients``: a disk is even under every mirror through its centre);
+   the ``max_candidates`` best fits of each go on.
 6. **icp**: a few batched spectral-ICP steps on every candidate (:func:`batched_icp`), so that the
    candidates of one symmetry found from different tuples agree (raw Procrustes solutions of noisy
    tuples scatter by more than the gap between elements).
@@ -77,7 +79,7 @@ from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solve
 from ..units import EPS_KLC
 from .candidates import Pinning, invariant_points, partner_mask, tuple_pairs
 from .config import GroupConfig
-from .constraints import descriptor_coefficients, disk_coefficients
+from .constraints import descriptor_coefficients, dipole_coefficients, disk_coefficients
 from .group_elements import (CoarseElements, Element, Geometry, batched_icp, far_above, upsample_elements,
                              zoomout)
 from .result import Diagnostics, GroupDiagnostics, Symmetry, SymmetryResult
@@ -248,7 +250,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     lap("candidates")
     if len(pairs.src) == 0:
         return trivial("no candidate survived pruning")
-    C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates)
+    dip = dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
+    C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates, dip)
     if len(C) < len(pairs.src):
         diag = replace(diag, n_candidates_kept=len(C))
     lap("procrustes")
@@ -361,12 +364,15 @@ def continuous_test(geo: Geometry, solver: GeodesicSolver, bands: list[range], k
     return all(passed), diag
 
 
-def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int) -> tuple[Tensor, Tensor]:
+def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int,
+                 dip: Tensor | None = None) -> tuple[Tensor, Tensor]:
     """[B, k0, J] constraint coefficients ``(A, B)`` with ``C A ≈ B`` for each tuple pair.
 
     ``1_{g(p)} ∘ g = 1_p``: the functions (A) are disks at the targets q, their pull-backs (B) at
-    the sources p; the descriptors are their own pull-backs. ``coef`` [n, R, k0]: the disk
-    coefficients of the points; a tuple padded with -1 (shorter than the longest) gets zero columns.
+    the sources p; the descriptors are their own pull-backs; with ``dip`` [n, n, R, k0]
+    (``constraints.dipole_coefficients``), also the dipole at each tuple point towards the next
+    (cyclically), at q and at p. ``coef`` [n, R, k0]: the disk coefficients of the points; a tuple
+    padded with -1 (shorter than the longest) gets zero columns.
     """
     E0 = spectrum.evecs[:, :k0]
     A_disk = torch.cat([coef, torch.zeros_like(coef[:1])]).permute(2, 0, 1)  # [k0, n + 1, R]: -1 -> 0
@@ -375,20 +381,34 @@ def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int)
     Bn = len(Pt)
     A = torch.cat([A_disk[:, Qt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
     B = torch.cat([A_disk[:, Pt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
+    if dip is not None:
+        n = dip.shape[0]
+        D = dip.new_zeros(n + 1, n + 1, *dip.shape[2:])  # -1 (padding) -> zeros
+        D[:n, :n] = dip
+        A = torch.cat([A, D[Qt, Qt.roll(-1, 1)].reshape(Bn, -1, k0).mT], -1)
+        B = torch.cat([B, D[Pt, Pt.roll(-1, 1)].reshape(Bn, -1, k0).mT], -1)
     return A, B
 
 
 def candidate_fmaps(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, basis: GroupBasis,
-                    device: torch.device, max_candidates: int) -> Tensor:
-    """Stage 5: [B, k0, k0] one matrix per tuple pair, all in one batched block Procrustes; of more
-    than ``max_candidates``, those whose matrix fits its constraints best (relative residual).
-    ``coef`` [n, R, k0]: the points' disk coefficients."""
-    A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0))
-    C = block_procrustes(A, B, basis.bands0)
-    if len(C) > max_candidates:
-        fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
-        C = C[torch.argsort(fit)[:max_candidates]]
-    return C
+                    device: torch.device, max_candidates: int, dip: Tensor | None = None) -> Tensor:
+    """Stage 5: [B', k0, k0] matrices of the tuple pairs, in batched block Procrustes; of more than
+    ``max_candidates``, those whose matrix fits its constraints best (relative residual).
+    ``coef`` [n, R, k0]: the points' disk coefficients; ``dip`` [n, n, R, k0]: their dipoles
+    (:func:`_constraints`). With ``dip``, each tuple pair is solved twice, with the disks alone and
+    with the dipoles added, and both sets go on (``B' <= 2 B``): the dipoles pin the bands the
+    mirrors through every tuple point negate (a regular hexagonal prism: 6 of 24 elements without
+    them), the disks alone keep what they found before (on Watertight 156's thin top the dipoles
+    alone favour the half turn composed with the swap of its two faces)."""
+    out = []
+    for d in ([None] if dip is None else [None, dip]):
+        A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, d))
+        C = block_procrustes(A, B, basis.bands0)
+        if len(C) > max_candidates:
+            fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
+            C = C[torch.argsort(fit)[:max_candidates]]
+        out.append(C)
+    return torch.cat(out)
 
 
 def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tuple[list[Tensor], list[int]]:
