@@ -43,10 +43,11 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
 10. **group** (:func:`group_of_elements`): the largest set of verified elements closed under
     composition of their *maps* (``groups.largest_subgroup``); table, inverses, orders and name
     (``groups.group_info``), with orientation flags that are a homomorphism of the table and agree
-    best with the per-element votes (mirrors several times more distorted than the rotations are a
-    near-symmetry: left out of the group by default, with one warning and their
-    distortions in the diagnostics, :func:`near_symmetry_coset`); elements in the
-    order of the paper's Table 3 (identity, rotation powers, reflection coset).
+    best with the per-element votes (half of the group several times more distorted than the other
+    half, the mirrors of a chiral shape most often, is a near-symmetry: left out of the group by
+    default, with one warning and its distortions in the diagnostics,
+    :func:`near_symmetry_coset`); elements in the order of the paper's Table 3 (identity, rotation
+    powers, reflection coset).
 
 The confidence of an element is ``exp(-distortion^2)``. Knobs: :class:`~symtorch.detect.config.GroupConfig`.
 
@@ -72,7 +73,8 @@ from ..cluster import mean_shift
 from ..descriptors import descriptors
 from ..geodesics import GeodesicSolver
 from ..groups.algebra import cayley_table
-from ..groups.naming import GroupInfo, group_info, kind_of, orientation_score
+from ..groups.naming import GroupInfo, fixes_points, group_info, kind_of, orientation_score
+from ..groups.algebra import _z2_homs
 from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
 from ..procrustes import block_procrustes
 from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solved_bands
@@ -80,8 +82,8 @@ from ..units import EPS_KLC
 from .candidates import Pinning, invariant_points, partner_mask, tuple_pairs
 from .config import GroupConfig
 from .constraints import descriptor_coefficients, dipole_coefficients, disk_coefficients
-from .group_elements import (CoarseElements, Element, Geometry, batched_icp, far_above, upsample_elements,
-                             zoomout)
+from .group_elements import (OUTLIER_FLOOR, CoarseElements, Element, Geometry, batched_icp, far_above,
+                             upsample_elements, zoomout)
 from .result import Diagnostics, GroupDiagnostics, Symmetry, SymmetryResult
 
 log = logging.getLogger(__name__)
@@ -441,49 +443,112 @@ def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tupl
     return reps, [int(c) for c in counts.tolist()]
 
 
-#: near_symmetry_coset's rule (``group_elements.far_above``): the reversing elements' median
-#: distortion this many times the rotations': the halves of one true group read about one size,
-#: regular or remeshed, chiral mirrors several times their rotations even on a remesh, whose noise
-#: reaches every element (BENCHMARKS.md, "Wider shapes")
+#: near_symmetry_coset's rule for the orientation-reversing half (``group_elements.far_above``): its
+#: median distortion this many times the rotations'. The halves of one true group read about one
+#: size on regular meshes and ACVD remeshes (0.8-1.1 times), a chiral shape's mirrors 2.9-5.0 times
+#: on a remesh and 25-40 times on a regular mesh (BENCHMARKS.md, "Wider shapes")
 COSET_RATIO = 2.0
+#: ... and for any other index-2 coset, this, and every element of the coset above every element of
+#: the subgroup: a bend spares the half of a slab's group that respects it, up to 3.8 times less
+#: distorted than the rest and apart from it (a bent thin eight-pointed star), as far apart as the
+#: remeshed octagonal prism's spurious eighth turns (4.2 times); a near-symmetric half riding on an
+#: exactly symmetric triangulation (a squashed trigonal antiprism's D3d read as D6h: 0.19 against
+#: 0.0004) stands out by far more
+SUBGROUP_RATIO = 10.0
 
 
-def near_symmetry_coset(reversing, distortion) -> bool:
-    """Whether the orientation-reversing elements are a near-symmetry riding on exact rotations.
+def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
+    """The index-2 coset of the group that is a near-symmetry riding on an exact subgroup, if any.
 
     The elements of one exact group share the mesh's discretisation, so their distortions are of
-    one size, on regular meshes and remeshed; where the mirrors are several times more distorted
-    than the rotations, the mirrors are a near-symmetry: either a shape made chiral by small features (the
-    exact group is the rotations) or mirrors that hold only approximately (arms swept sideways by a
-    near-isometry). The two read alike (BENCHMARKS.md, "Wider shapes"); both are measured
-    departures from the shape's own exactness, which its rotations show, so by default the group
-    path reports the rotations as the group and the mirrors in the diagnostics, with one warning
-    (``GroupConfig.near_mirrors``). True: the reversing elements' median
-    distortion is :func:`~.group_elements.far_above` (:data:`COSET_RATIO`) the median of the
-    non-identity rotations'. False where either half is empty (Cs keeps its
-    mirror: nothing to compare it with).
+    one size, on regular meshes and remeshed. Where one half of the group, the complement of an
+    index-2 subgroup H, is several times more distorted than H, that half is a near-symmetry: the
+    mirrors of a shape made chiral by small features, mirrors that hold only approximately (arms
+    swept sideways by a near-isometry: the two read alike, BENCHMARKS.md, "Wider shapes"), or the
+    turns of a near-round shape that its resolution admits (an octagonal prism remeshed: D16h,
+    twice its D8h). Every index-2 subgroup is the kernel of a homomorphism onto Z2
+    (``groups.algebra._z2_homs``); the orientation-reversing elements are one such coset.
 
     Args:
-        reversing: [G] bool per element (identity first); distortion: [G] floats, KLC radii.
+        table: [G, G] group table; distortion: [G] floats, KLC radii; reversing: optional [G] bool,
+            the orientation-reversing elements (their coset is held to :data:`COSET_RATIO`, any
+            other to :data:`SUBGROUP_RATIO` and separation).
+
+    Returns:
+        [G] bool, the coset (True) whose median distortion is :func:`~.group_elements.far_above`
+        the median of H's non-identity elements by the ratios above, the most so where several
+        are; None where none is, or where H is the identity alone (Cs keeps its mirror: nothing to
+        compare it with).
     """
-    rot, mir = _by_orientation(reversing, distortion)
-    if not rot or not mir:
-        return False
-    return far_above(float(np.median(mir)), float(np.median(rot)), COSET_RATIO)
+    T = np.asarray(table)
+    d = np.asarray(distortion, dtype=np.float64)
+    rev = None if reversing is None else np.asarray(reversing, dtype=bool)
+    e = int(np.flatnonzero((T == np.arange(len(T))[None]).all(1))[0])
+    best, best_ratio = None, 0.0
+    for coset in _z2_homs(T, e):
+        inner = np.flatnonzero(~coset)
+        inner = inner[inner != e]
+        if len(inner) == 0:
+            continue
+        mc, mh = float(np.median(d[coset])), float(np.median(d[inner]))
+        if rev is not None and (coset == rev).all():
+            stands_out = far_above(mc, mh, COSET_RATIO)
+        else:
+            stands_out = far_above(mc, mh, SUBGROUP_RATIO) and d[coset].min() > d[inner].max()
+        ratio = mc / max(mh, OUTLIER_FLOOR)
+        if stands_out and ratio > best_ratio:
+            best, best_ratio = coset, ratio
+    return best
 
 
-def _by_orientation(reversing, distortion) -> tuple[list[float], list[float]]:
-    """(the non-identity rotations' distortions, the reversing elements'); identity first."""
-    pairs = list(zip(distortion, reversing))
-    return [d for d, r in pairs[1:] if not r], [d for d, r in pairs if r]
+def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
+                          diag: GroupDiagnostics) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
+    """:func:`near_symmetry_coset`, until none is left (``near_mirrors='drop'``: each round halves
+    the group, the table restricted to the subgroup) or once (``'keep'``), with one warning."""
+    table = np.asarray(table)
+    dropped: list[float] = []
+    said = []
+    while len(elements) > 2:
+        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev)
+        if coset is None:
+            break
+        dist = np.asarray([e.distortion for e in elements])
+        inner = np.flatnonzero(~coset)[1:]  # identity first, never in the coset
+        what = ("orientation-reversing elements" if list(coset) == list(rev)
+                else "elements of an index-2 coset")
+        said.append(f"the {int(coset.sum())} {what} are near-symmetries riding on a near-exact subgroup "
+                    f"of {int((~coset).sum())} (median distortion {np.median(dist[coset]):.3f} against "
+                    f"{np.median(dist[inner]):.3f} EPS_KLC)")
+        dropped += [round(float(x), 4) for x in dist[coset]]
+        if near_mirrors != "drop":
+            break
+        keep = np.flatnonzero(~coset)
+        renumber = np.full(len(elements), -1)
+        renumber[keep] = np.arange(len(keep))
+        table = renumber[table[np.ix_(keep, keep)]]
+        elements = [elements[i] for i in keep]
+        rev = [rev[i] for i in keep]
+    if said:
+        diag = replace(diag, near_symmetry_coset=dropped)
+        if near_mirrors == "drop":
+            rest = "rotations" if not any(rev) else "elements of the subgroup"
+            warnings.warn(f"{'; '.join(said)}: left out, the group is the {len(elements)} {rest} "
+                          f"(GroupConfig(near_mirrors='keep') keeps them; their distortions: "
+                          f"diagnostics.group.near_symmetry_coset)", stacklevel=3)
+        else:
+            sub = int((~coset).sum())
+            rest = "rotations" if list(coset) == list(rev) else "elements of that subgroup"
+            warnings.warn(f"{said[0]}: kept, but the exact group may be the {sub} {rest} alone "
+                          f"(diagnostics.group.near_symmetry_coset)", stacklevel=3)
+    return elements, table, rev, diag
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
                       near_mirrors: str = "drop") -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
-    name, and the elements in the paper's order (Table 3). Where the orientation-reversing
-    elements are a near-symmetry (:func:`near_symmetry_coset`), ``near_mirrors='drop'`` leaves
-    them out: the group is the rotations, an index-2 subgroup."""
+    name, and the elements in the paper's order (Table 3). Where half of the group is a
+    near-symmetry riding on the other half (:func:`near_symmetry_coset`: the mirrors of a chiral
+    shape, most often), ``near_mirrors='drop'`` leaves it out: the group is that index-2 subgroup."""
     x_unit = geo.verts
     faces_t = torch.as_tensor(faces)
     keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
@@ -492,29 +557,10 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
+    elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag)
     dist = [e.distortion for e in elements]
-    if near_symmetry_coset(rev, dist):
-        rot, mir = _by_orientation(rev, dist)
-        diag = replace(diag, near_symmetry_coset=[round(d, 4) for d in mir])
-        said = (f"the {len(mir)} orientation-reversing elements are near-symmetries riding on "
-                f"near-exact rotations (median distortion {np.median(mir):.3f} against "
-                f"{np.median(rot):.3f} EPS_KLC)")
-        if near_mirrors == "drop":
-            # the rotations: the kernel of the orientation homomorphism, so the table restricts to them
-            rot_idx = [i for i, r in enumerate(rev) if not r]
-            renumber = np.full(len(elements), -1)
-            renumber[rot_idx] = np.arange(len(rot_idx))
-            table = renumber[np.asarray(table)[np.ix_(rot_idx, rot_idx)]]
-            elements = [elements[i] for i in rot_idx]
-            rev = [False] * len(elements)
-            dist = [e.distortion for e in elements]
-            warnings.warn(f"{said}: left out, the group is the {len(elements)} rotations "
-                          f"(GroupConfig(near_mirrors='keep') keeps them; their distortions: "
-                          f"diagnostics.group.near_symmetry_coset)", stacklevel=2)
-        else:
-            warnings.warn(f"{said}: kept, but the exact group may be the {len(rot) + 1} rotations "
-                          f"alone (diagnostics.group.near_symmetry_coset)", stacklevel=2)
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
+    fixes = fixes_points(torch.stack([e.p2p for e in elements]), x_unit, faces_t)  # Dnh / Dnd, Cs / Ci
     table, rev = torch.as_tensor(table, dtype=torch.long), torch.as_tensor(rev, dtype=torch.bool)
     order = canonical_order(table, rev, dist)
     perm = torch.tensor(order)
@@ -522,7 +568,7 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     inv_perm[perm] = torch.arange(len(perm))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        group = group_info(inv_perm[table[perm][:, perm]], rev[perm])
+        group = group_info(inv_perm[table[perm][:, perm]], rev[perm], fixes=fixes[perm])
     symmetries = []
     for new_i, i in enumerate(order):
         e = elements[i]

@@ -55,7 +55,7 @@ from torch import Tensor
 
 from ..descriptors import descriptors, gradient_cross
 from ..geodesics import GeodesicSolver, voronoi_cells
-from ..groups.naming import GroupInfo, group_info, kind_of, orientation_reversing
+from ..groups.naming import GroupInfo, fixes_points, group_info, kind_of, orientation_reversing
 from ..maps import TwoLevelSearch, nearest_neighbors
 from ..procrustes import block_procrustes
 from ..refine import zoomout_symmetry
@@ -547,7 +547,7 @@ def orientation_guide(verts: Tensor, faces: Tensor, dist: Tensor, perm: np.ndarr
 
 
 def reflection_group(symmetries: list[Symmetry], verts, faces) -> tuple[list[Symmetry], GroupInfo]:
-    """The group report of the reflection path's elements (C1, or Cs/C2 with one involution), and
+    """The group report of the reflection path's elements (C1, or Cs/Ci/C2 with one involution), and
     each element's ``kind`` and ``order`` from it (``groups.kind_of``)."""
     vt = torch.as_tensor(np.asarray(verts, dtype=np.float64))
     ft = torch.as_tensor(np.asarray(faces, dtype=np.int64))
@@ -558,7 +558,8 @@ def reflection_group(symmetries: list[Symmetry], verts, faces) -> tuple[list[Sym
             rev.append(bool(orientation_reversing(s.p2p, vt, ft)))
     # identity, or identity and one involution: the table is known
     table = torch.tensor([[0]]) if len(symmetries) == 1 else torch.tensor([[0, 1], [1, 0]])
-    g = group_info(table, torch.tensor(rev))
+    fixes = fixes_points(torch.stack([s.p2p for s in symmetries]), vt, ft)  # Cs, or Ci: no fixed point
+    g = group_info(table, torch.tensor(rev), fixes=fixes)
     symmetries = [replace(s, kind=kind_of(int(o), bool(r)), order=int(o))
                   for s, o, r in zip(symmetries, g.orders.tolist(), g.reversing.tolist())]
     return symmetries, g

@@ -8,11 +8,11 @@ from .algebra import (DEFAULT_TOL, Cayley, Closure, GroupCheck, cayley_table, ch
                       compose_fmap, compose_p2p, element_orders, identity_index, inverse_fmap, inverse_p2p,
                       inverses)
 from .from_maps import canonical_order, consistent_orientation, largest_subgroup, map_table
-from .naming import (GroupInfo, abstract_group, group_info, identify_group, kind_of, orientation_reversing,
-                     orientation_score)
+from .naming import (GroupInfo, abstract_group, fixes_points, group_info, identify_group, kind_of,
+                     orientation_reversing, orientation_score)
 
 __all__ = ["DEFAULT_TOL", "compose_fmap", "compose_p2p", "inverse_fmap", "inverse_p2p", "Cayley",
            "cayley_table", "identity_index", "element_orders", "inverses", "GroupCheck", "check_group",
-           "Closure", "closure", "abstract_group", "identify_group", "kind_of", "orientation_score",
+           "Closure", "closure", "abstract_group", "identify_group", "kind_of", "fixes_points", "orientation_score",
            "orientation_reversing", "GroupInfo", "group_info", "map_table", "largest_subgroup",
            "consistent_orientation", "canonical_order"]

@@ -26,7 +26,7 @@ from .algebra import (_check_p2p, _check_reversing, _check_table, _generated, _i
                       _subtable, _z2_homs, cayley_table, check_group, element_orders, identity_index,
                       inverses)
 
-__all__ = ["abstract_group", "identify_group", "kind_of", "orientation_score", "orientation_reversing",
+__all__ = ["abstract_group", "identify_group", "kind_of", "fixes_points", "orientation_score", "orientation_reversing",
            "GroupInfo", "group_info"]
 
 
@@ -92,7 +92,7 @@ def _fallback(G: int) -> str:
     return f"order-{G} group"
 
 
-def identify_group(table: Tensor, reversing: Tensor) -> str:
+def identify_group(table: Tensor, reversing: Tensor, fixes: Tensor | None = None) -> str:
     """Schoenflies name of a symmetry group, from its table and which elements reverse orientation.
 
     The orientation-preserving elements H (rotations) form a subgroup of index 1 or 2. With no
@@ -107,13 +107,20 @@ def identify_group(table: Tensor, reversing: Tensor) -> str:
     - anything else: ``"order-G group"``.
 
     Note:
-        A table with orientation flags cannot tell apart C2v / C2h, Cnh / S2n for odd n, and
-        Dnh / Dnd for odd n (same abstract group, same reversing coset); the first of each pair is
-        returned.
+        A table with orientation flags cannot tell apart Cs / Ci, C2v / C2h, Cnh / S2n for odd n,
+        and Dnh / Dnd for odd n (same abstract group, same reversing coset); without ``fixes`` the
+        first of each pair is returned. An orientation-reversing involution of a closed surface
+        either fixes a curve (a mirror) or no point at all (the point inversion of a centrally
+        symmetric shape, intrinsically too): ``fixes`` tells them apart. Then ``Ci`` is the
+        inversion alone, ``C2h`` is ``C2`` with an inversion, and for odd n the central reversing
+        involution is ``σh`` (``Cnh``, ``Dnh``) where it fixes a curve and the inversion (``S2n``,
+        ``Dnd``) where it does not.
 
     Args:
         table: [G, G] group table (``table[a, b]`` = ``a ∘ b``).
         reversing: [G] bool, True for orientation-reversing elements (``orientation_reversing``).
+        fixes: optional [G] bool, whether each element's map fixes some point (``fixes_points``);
+            read for the reversing involutions only.
 
     Returns:
         The name, e.g. ``"D5h"``.
@@ -139,16 +146,21 @@ def identify_group(table: Tensor, reversing: Tensor) -> str:
             return f"D{sH[1]}"
         return {("alternating", 4): "T", ("symmetric", 4): "O", ("alternating", 5): "I"}.get(
             sH, _fallback(G))
+    fix = np.ones(G, dtype=bool) if fixes is None else np.asarray(torch.as_tensor(fixes).cpu(), dtype=bool)
+    if fix.shape != (G,):
+        raise ValueError(f"fixes must be [G] = [{G}] bools, got {list(fix.shape)}")
     if len(H) == 1:
-        return "Cs"
+        return "Cs" if fix[rev].all() else "Ci"
     orders = _orders_np(T, e)
     central = (T == T.T).all(1)
-    has_sigma_h = bool((central & rev & (orders == 2)).any())
+    central_rev = central & rev & (orders == 2)
+    has_central = bool(central_rev.any())
+    has_sigma_h = bool((central_rev & fix).any())
     sG = _structure(T)
     if sH[0] == "cyclic":
         n = sH[1]
         if (orders[rev] == 2).all():
-            return f"C{n}v"
+            return f"C{n}v" if fix[rev].all() else f"C{n}h"  # C2h: C2, sigma_h and the inversion
         if has_sigma_h:
             return f"C{n}h"
         if sG == ("cyclic", G):
@@ -157,16 +169,16 @@ def identify_group(table: Tensor, reversing: Tensor) -> str:
         n = sH[1]
         if has_sigma_h:
             return f"D{n}h"
-        if sG == ("dihedral", 2 * n):
+        if sG == ("dihedral", 2 * n) or (has_central and n % 2 == 1):
             return f"D{n}d"
     elif sH == ("alternating", 4):
-        if has_sigma_h:
+        if has_central:  # the inversion
             return "Th"
         if sG == ("symmetric", 4):
             return "Td"
-    elif sH == ("symmetric", 4) and has_sigma_h:
+    elif sH == ("symmetric", 4) and has_central:
         return "Oh"
-    elif sH == ("alternating", 5) and has_sigma_h:
+    elif sH == ("alternating", 5) and has_central:
         return "Ih"
     return _fallback(G)
 
@@ -238,6 +250,24 @@ def orientation_score(p2p: Tensor, verts: Tensor, faces: Tensor, *,
         & (n_img.norm(dim=-1) > 1e-12 * src_edge.square())
     w = fn.norm(dim=-1) * valid  # face area (x2) weights
     return (w * vote).sum(-1) / w.sum(-1).clamp_min(torch.finfo(w.dtype).tiny)
+
+
+def fixes_points(p2p: Tensor, verts: Tensor, faces: Tensor, *, edges: float = 2.0) -> Tensor:
+    """Whether each vertex map fixes a point: some vertex lands within ``edges`` mean edge lengths
+    of itself. A mirror fixes a curve, and its map moves the vertices on it by about an edge; a
+    point inversion moves every point by at least the shape's thickness through its centre.
+
+    Args:
+        p2p: [..., V] vertex maps; verts: [V, 3]; faces: [F, 3].
+
+    Returns:
+        [...] bool.
+    """
+    verts = torch.as_tensor(verts)
+    faces = torch.as_tensor(faces, device=verts.device).long()
+    p2p = _check_p2p(p2p, n_verts=verts.shape[0]).to(verts.device)
+    edge = (verts[faces] - verts[faces.roll(1, -1)]).norm(dim=-1).mean()
+    return (verts[p2p] - verts).norm(dim=-1).amin(-1) < edges * edge
 
 
 def orientation_reversing(p2p: Tensor, verts: Tensor, faces: Tensor, *, max_stretch: float = 3.0) -> bool:
@@ -315,13 +345,15 @@ class GroupInfo:
         return out
 
 
-def group_info(x: Tensor, reversing: Tensor, *, tol: float | None = None) -> GroupInfo:
+def group_info(x: Tensor, reversing: Tensor, *, tol: float | None = None,
+               fixes: Tensor | None = None) -> GroupInfo:
     """Table, inverses, orders, structure and name of a symmetry group.
 
     Args:
         x: [G, K, K] symmetry matrices (tabled by ``cayley_table(x, tol)``) or a [G, G] table.
         reversing: [G] bool orientation flags.
         tol: see ``cayley_table``.
+        fixes: optional [G] bool, whether each map fixes a point (:func:`identify_group`).
 
     Returns:
         GroupInfo.
@@ -336,7 +368,7 @@ def group_info(x: Tensor, reversing: Tensor, *, tol: float | None = None) -> Gro
         table, residual = cayley_table(x, tol)
     G = table.shape[0]
     rev = torch.as_tensor(_check_reversing(reversing, G), device=table.device)
-    name = identify_group(table, rev)
+    name = identify_group(table, rev, fixes)
     return GroupInfo(name=name, order=G, table=table, inverses=inverses(table),
                      orders=element_orders(table), reversing=rev, identity=identity_index(table),
                      abstract=abstract_group(table), residual=residual)
