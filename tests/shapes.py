@@ -1,4 +1,5 @@
 """Shapes built in code with known symmetries, and a quiet detection, shared by the tests."""
+import itertools
 import math
 import warnings
 
@@ -251,6 +252,79 @@ def bend(verts: np.ndarray, radius: float = 4.0) -> np.ndarray:
 
 
 # (id, builder, group name, order, bend radius or 0): the wider shape set of tests/test_group_shapes.py
+def point_symmetries(points, tol: float = 1e-6) -> list[np.ndarray]:
+    """Every orthogonal matrix that permutes a centred point set (a polyhedron's vertices): each
+    maps one fixed triple of the points onto an ordered triple with the same norms and distances."""
+    P = np.asarray(points, dtype=np.float64)
+    P = P - P.mean(0)
+    n = len(P)
+    base = max(itertools.combinations(range(n), 3), key=lambda t: abs(np.linalg.det(P[list(t)])))
+    A = P[list(base)]
+    D, norm = np.linalg.norm(P[:, None] - P[None], axis=-1), np.linalg.norm(P, axis=1)
+    out: list[np.ndarray] = []
+    for t in itertools.permutations(range(n), 3):
+        if (np.abs(norm[list(t)] - norm[list(base)]) > tol).any():
+            continue
+        if any(abs(D[t[a], t[b]] - D[base[a], base[b]]) > tol for a, b in ((0, 1), (0, 2), (1, 2))):
+            continue
+        M = np.linalg.solve(A, P[list(t)]).T  # M @ base_a = t_a
+        if np.abs(M @ M.T - np.eye(3)).max() > 1e-6:
+            continue
+        if np.linalg.norm((P @ M.T)[:, None] - P[None], axis=-1).min(1).max() > 1e-6:
+            continue
+        if not any(np.abs(M - X).max() < 1e-6 for X in out):
+            out.append(M)
+    return out
+
+
+def convex_solid(points, edge: float = 0.07):
+    """The convex hull of a point set (``trimesh.convex.convex_hull``), centred and subdivided;
+    its group is that of the points (a convex polyhedron's intrinsic metric fixes it up to a rigid
+    motion, Alexandrov), found by :func:`point_symmetries`."""
+    import trimesh
+
+    P = np.asarray(points, dtype=np.float64)
+    P = P - P.mean(0)
+    v, f = _trimesh_arrays(trimesh.convex.convex_hull(P), edge)
+    return v, f, point_symmetries(P)
+
+
+def antiprism(n: int, half_height: float) -> np.ndarray:
+    """[2n, 3] the vertices of an n-gonal antiprism (D_nd): two n-gons of radius 1, the lower
+    turned by pi / n."""
+    a = 2 * np.pi * np.arange(n) / n
+    return np.concatenate([np.stack([np.cos(a), np.sin(a), np.full(n, half_height)], 1),
+                           np.stack([np.cos(a + np.pi / n), np.sin(a + np.pi / n), np.full(n, -half_height)], 1)])
+
+
+POLYHEDRA = {  # vertex sets
+    "tetrahedron": np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=np.float64),  # Td
+    "cube": np.array(list(itertools.product([-0.5, 0.5], repeat=3))),  # Oh
+    "octahedron": np.concatenate([np.eye(3), -np.eye(3)]),  # Oh
+    "disphenoid": np.array([[1, 0, 0.45], [-1, 0, 0.45], [0, 1, -0.45], [0, -1, -0.45]]),  # D2d
+    # seven random points and their negatives: Ci, a point inversion and nothing else
+    "centrosymmetric": (lambda q: np.concatenate([q, -q]))(
+        np.random.default_rng(0).normal(size=(7, 3)) * [1.0, 0.8, 0.6]),
+}
+
+
+def pinwheel_prism(n: int = 4, height: float = 0.3, edge: float = 0.06):
+    """C_nh: ``trimesh.creation.extrude_polygon`` of an n-bladed pinwheel (each blade leaning one
+    way, so no vertical mirror), centred: rotations, the mirror between the caps and their products."""
+    import trimesh
+    from shapely.geometry import Polygon
+
+    pts = []
+    for i in range(n):
+        for r, turn in ((0.45, 0.0), (1.0, 0.15), (0.8, 0.9)):
+            b = 2 * math.pi * (i + turn) / n
+            pts.append((r * math.cos(b), r * math.sin(b)))
+    m = trimesh.creation.extrude_polygon(Polygon(pts), height)
+    m.apply_translation([0, 0, -height / 2])
+    v, f = _trimesh_arrays(m, edge)
+    return v, f, group_mats(n, horizontal_mirror=True)
+
+
 GROUP_SHAPES = [
     ("star5_thin", lambda: star_slab(5, 0.25), "D5h", 20, 0),
     ("star6_thin", lambda: star_slab(6, 0.25), "D6h", 24, 0),
@@ -319,6 +393,20 @@ GROUP_SHAPES = [
     ("chiral8_jitter", lambda: _jittered(lambda: armed_ball(8, chiral=True)), "C8", 8, 0),
     ("arms8_jitter", lambda: _jittered(lambda: armed_ball(8)), "C8v", 16, 0),
     ("star5_jitter", lambda: _jittered(lambda: star_slab(5)), "D5h", 20, 0),
+    # polyhedra and the groups no prism has: tetrahedral, octahedral, D_nd, S_2n-free C_nh, Ci
+    ("tetrahedron", lambda: convex_solid(POLYHEDRA["tetrahedron"], 0.1), "Td", 24, 0),
+    ("cube", lambda: convex_solid(POLYHEDRA["cube"], 0.05), "Oh", 48, 0),
+    ("octahedron", lambda: convex_solid(POLYHEDRA["octahedron"], 0.07), "Oh", 48, 0),
+    ("disphenoid", lambda: convex_solid(POLYHEDRA["disphenoid"]), "D2d", 8, 0),
+    ("antiprism5", lambda: convex_solid(antiprism(5, 0.45)), "D5d", 20, 0),
+    ("antiprism6", lambda: convex_solid(antiprism(6, 0.5)), "D6d", 24, 0),
+    ("antiprism3_flat", lambda: convex_solid(antiprism(3, 0.3)), "D3d", 12, 0),  # nearly D6h
+    ("centrosymmetric", lambda: convex_solid(POLYHEDRA["centrosymmetric"], 0.08), "Ci", 2, 0),
+    ("pinwheel4", lambda: pinwheel_prism(4), "C4h", 8, 0),
+    ("pinwheel3", lambda: pinwheel_prism(3), "C3h", 6, 0),
+    # regular prisms: corners and cap centres all on mirror planes (the dipole constraints)
+    ("hex_prism", lambda: extruded_polygon(6, 0.5, None), "D6h", 24, 0),
+    ("hept_prism", lambda: extruded_polygon(7, 0.5, None), "D7h", 28, 0),
 ]
 
 

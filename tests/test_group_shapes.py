@@ -1,7 +1,7 @@
 """The group path on a wider set of shapes with exactly known groups: D_nh star slabs
 of several n and thicknesses, C_nv balls with 4-12 drooping arms, chiral C_n, D_n twisted blades,
 a subdivided box, shapes built with trimesh (extruded polygons, unions of primitives), jittered
-and bent versions (``tests/shapes.py``, ``GROUP_SHAPES``; the swept arms, whose
+and bent versions, convex polyhedra (Td, Oh, D2d, D_nd antiprisms, Ci) and pinwheel prisms (C_nh) (``tests/shapes.py``, ``GROUP_SHAPES``; the swept arms, whose
 mirrors hold only approximately, are measured in ``scripts/group_shapes_table.py``, not checked).
 
 Each detected element is matched to a true one (``eval.groups.element_rates``: the share of 100
@@ -9,8 +9,11 @@ evenly spaced vertices whose image lies within sqrt(area / (20 pi)) of the true 
 may be spurious, and the group's name, order, element orders and orientation are the truth's.
 The quick default run has the thin four-pointed star (the mirror between the caps) and the box, CI
 adds the thin five-pointed star, the eight arms, the six arms bent at R = 3 (the merged-band
-retry), the extruded star (the closure's held-back outliers) and the jittered chiral arms (the
-near-mirror rule off a symmetric triangulation; ``extended``); the rest is ``slow``.
+retry), the extruded star (the closure's held-back outliers), the jittered chiral arms (the
+near-mirror rule off a symmetric triangulation), the regular hexagonal prism (the dipole
+constraints), the pentagonal antiprism and the centrosymmetric solid (inversions named from fixed
+points) and the flat trigonal antiprism (a near-symmetric index-2 coset; ``extended``); the rest
+is ``slow``.
 """
 import warnings
 
@@ -30,7 +33,7 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = {"star4_thin", "box"}  # the quick run; CI (extended) adds these two, the rest is slow
 EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent", "arms6_bent3", "star5_extruded",
-            "chiral8_jitter"}
+            "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric"}
 
 
 def _params():

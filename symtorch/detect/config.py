@@ -154,11 +154,14 @@ class GroupConfig:
         near_miss_ratio, n_near_misses: at most this many candidates the coarse screen rejected
             by at most this ratio of ``max_distortion`` are measured exactly too (the coarse basis
             can distort what the refined one does not); 0: none.
-        near_mirrors: where the orientation-reversing elements are a near-symmetry riding on
-            near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`:
-            several times more distorted), ``'drop'`` reports the rotations alone as the
-            group (the mirrors' distortions stay in ``diagnostics.group.near_symmetry_coset``);
-            ``'keep'`` reports the whole group with them.
+        near_mirrors: where half of the group is a near-symmetry riding on a near-exact index-2
+            subgroup (:func:`~symtorch.detect.group_path.near_symmetry_coset`: several times more
+            distorted; most often the orientation-reversing half, a chiral shape's mirrors),
+            ``'drop'`` reports the subgroup as the group (the half's distortions stay in
+            ``diagnostics.group.near_symmetry_coset``); ``'keep'`` reports the whole group.
+        dipoles: solve every candidate a second time with dipole constraints (each tuple point's
+            disk tilted towards the next, ``constraints.dipole_coefficients``), both sets going
+            on: they pin the bands that every mirror through the tuple points negates.
         merged_gap: where the group found has no element of order above 2 but the spectrum has
             multiplicities (``group_path.has_multiplicities``: 2-D eigenspaces no such group
             explains), the path runs again in bands merged across gaps below this many local
@@ -187,6 +190,7 @@ class GroupConfig:
     near_mirrors: str = "drop"
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
+    dipoles: bool = True
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):

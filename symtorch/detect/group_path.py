@@ -253,7 +253,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     lap("candidates")
     if len(pairs.src) == 0:
         return trivial("no candidate survived pruning")
-    dip = dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
+    dip = (dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
+           if cfg.dipoles else None)
     C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates, dip)
     if len(C) < len(pairs.src):
         diag = replace(diag, n_candidates_kept=len(C))
