@@ -108,8 +108,17 @@ def test_bent_star_keeps_its_intrinsic_group():
     _check_against_truth(res, v, f, shapes.symmetry_maps(v0, mats), "bent", mats)
 
 
-@pytest.mark.parametrize("builder", [lambda: shapes.ellipsoid(3), lambda: shapes.icosphere(3)],
-                         ids=["ellipsoid", "sphere"])
+def _cone():
+    """A trimesh cone of 64 sections: its first band merges the axial mode with the first pair."""
+    import trimesh
+
+    from shapes import _trimesh_arrays
+
+    return _trimesh_arrays(trimesh.creation.cone(radius=0.6, height=1.0, sections=64), 0.05)
+
+
+@pytest.mark.parametrize("builder", [lambda: shapes.ellipsoid(3), lambda: shapes.icosphere(3), _cone],
+                         ids=["ellipsoid", "sphere", "cone"])
 def test_continuous_symmetry_is_reported(builder):
     v, f = builder()
     res = detect_quietly(v, f)
@@ -118,6 +127,18 @@ def test_continuous_symmetry_is_reported(builder):
     assert res.group.order == 1
     res = detect_quietly(v, f, mode="auto")
     assert res.continuous and len(res.symmetries) == 1
+
+
+def test_a_near_round_polyhedron_is_not_continuous():
+    """A square antiprism keeps a rotation by 0.55 rad put into its first pair, but bends it by
+    more than a vertex map's quantisation (1.2-1.4 mean edges): its symmetries are finite."""
+    from shapes import antiprism, convex_solid
+
+    v, f, _ = convex_solid(antiprism(4, 0.6))
+    res = detect_quietly(v, f)
+    ct = res.diagnostics.group.continuous_test
+    assert not res.continuous and ct["angle_0.55"]["stay"] < 0.1, ct
+    assert ct["angle_0.55"]["distortion"] > ct["max_distortion"]
 
 
 # ------------------------------------------------------------------------------------- real meshes
