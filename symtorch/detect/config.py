@@ -159,9 +159,12 @@ class GroupConfig:
             distorted; most often the orientation-reversing half, a chiral shape's mirrors),
             ``'drop'`` reports the subgroup as the group (the half's distortions stay in
             ``diagnostics.group.near_symmetry_coset``); ``'keep'`` reports the whole group.
-        dipoles: solve every candidate a second time with dipole constraints (each tuple point's
-            disk tilted towards the next, ``constraints.dipole_coefficients``), both sets going
-            on: they pin the bands that every mirror through the tuple points negates.
+        dipoles: weight of the dipole constraints beside the disks (each tuple point's disk
+            tilted towards the next, ``constraints.dipole_coefficients``; 0: none). They pin the
+            bands that every mirror through the tuple points negates (a regular hexagonal prism:
+            6 of its 24 elements without them); at full weight they decide against the disks
+            where both pin (Watertight 156's thin top: the half turn composed with the swap of
+            its two faces), at half weight only where the disks leave a band to noise.
         merged_gap: where the group found has no element of order above 2 but the spectrum has
             multiplicities (``group_path.has_multiplicities``: 2-D eigenspaces no such group
             explains), the path runs again in bands merged across gaps below this many local
@@ -190,13 +193,15 @@ class GroupConfig:
     near_mirrors: str = "drop"
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
-    dipoles: bool = True
+    dipoles: float = 0.5
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):
             raise ValueError(f"refine must be 'zoomout' or 'icp', got {self.refine!r}")
         if self.near_mirrors not in ("drop", "keep"):
             raise ValueError(f"near_mirrors must be 'drop' or 'keep', got {self.near_mirrors!r}")
+        if self.dipoles < 0:
+            raise ValueError(f"dipoles must be at least 0, got {self.dipoles!r}")
         if self.merged_gap < 0:
             raise ValueError(f"merged_gap must be at least 0, got {self.merged_gap!r}")
 

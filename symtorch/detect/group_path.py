@@ -22,9 +22,10 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
    by the geodesic ratio test (``delta``) and by descriptor agreement.
 5. **procrustes** (:func:`candidate_fmaps`): batched ``block_procrustes`` over all candidates,
    with the reflection path's constraints (geodesic disks around each tuple point, the descriptors
-   unchanged), and again with dipoles added (each tuple point's disk tilted towards the next,
-   ``constraints.dipole_coefficients``: a disk is even under every mirror through its centre);
-   the ``max_candidates`` best fits of each go on.
+   unchanged) and dipoles beside them at half weight (each tuple point's disk tilted towards the
+   next, ``constraints.dipole_coefficients``: a disk is even under every mirror through its
+   centre, so where every tuple point lies on mirror planes the disks leave the bands those
+   mirrors negate to noise); the ``max_candidates`` best fits go on.
 6. **icp**: a few batched spectral-ICP steps on every candidate (:func:`batched_icp`), so that the
    candidates of one symmetry found from different tuples agree (raw Procrustes solutions of noisy
    tuples scatter by more than the gap between elements).
@@ -253,8 +254,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     lap("candidates")
     if len(pairs.src) == 0:
         return trivial("no candidate survived pruning")
-    dip = (dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
-           if cfg.dipoles else None)
+    dip = (cfg.dipoles * dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
+           if cfg.dipoles > 0 else None)
     C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates, dip)
     if len(C) < len(pairs.src):
         diag = replace(diag, n_candidates_kept=len(C))
@@ -413,23 +414,16 @@ def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int,
 
 def candidate_fmaps(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, basis: GroupBasis,
                     device: torch.device, max_candidates: int, dip: Tensor | None = None) -> Tensor:
-    """Stage 5: [B', k0, k0] matrices of the tuple pairs, in batched block Procrustes; of more than
-    ``max_candidates``, those whose matrix fits its constraints best (relative residual).
-    ``coef`` [n, R, k0]: the points' disk coefficients; ``dip`` [n, n, R, k0]: their dipoles
-    (:func:`_constraints`). With ``dip``, each tuple pair is solved twice, with the disks alone and
-    with the dipoles added, and both sets go on (``B' <= 2 B``): the dipoles pin the bands the
-    mirrors through every tuple point negate (a regular hexagonal prism: 6 of 24 elements without
-    them), the disks alone keep what they found before (on Watertight 156's thin top the dipoles
-    alone favour the half turn composed with the swap of its two faces)."""
-    out = []
-    for d in ([None] if dip is None else [None, dip]):
-        A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, d))
-        C = block_procrustes(A, B, basis.bands0)
-        if len(C) > max_candidates:
-            fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
-            C = C[torch.argsort(fit)[:max_candidates]]
-        out.append(C)
-    return torch.cat(out)
+    """Stage 5: [B, k0, k0] one matrix per tuple pair, all in one batched block Procrustes; of more
+    than ``max_candidates``, those whose matrix fits its constraints best (relative residual).
+    ``coef`` [n, R, k0]: the points' disk coefficients; ``dip`` [n, n, R, k0]: their dipoles,
+    already weighted (:func:`_constraints`)."""
+    A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, dip))
+    C = block_procrustes(A, B, basis.bands0)
+    if len(C) > max_candidates:
+        fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
+        C = C[torch.argsort(fit)[:max_candidates]]
+    return C
 
 
 def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tuple[list[Tensor], list[int]]:
