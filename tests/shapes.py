@@ -301,7 +301,13 @@ POLYHEDRA = {  # vertex sets
     "tetrahedron": np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=np.float64),  # Td
     "cube": np.array(list(itertools.product([-0.5, 0.5], repeat=3))),  # Oh
     "octahedron": np.concatenate([np.eye(3), -np.eye(3)]),  # Oh
+    "icosahedron": np.array([p for a, b in itertools.product([-1, 1], [-(1 + 5 ** 0.5) / 2, (1 + 5 ** 0.5) / 2])
+                             for p in ([0, a, b], [a, b, 0], [b, 0, a])], dtype=np.float64),  # Ih
     "disphenoid": np.array([[1, 0, 0.45], [-1, 0, 0.45], [0, 1, -0.45], [0, -1, -0.45]]),  # D2d
+    # two turned triangles and their negatives: S6 (C3 and the inversion), near D3d
+    "s6": (lambda q: np.concatenate([q, -q]))(np.array(
+        [[math.cos(2 * math.pi * k / 3), math.sin(2 * math.pi * k / 3), 0.5] for k in range(3)]
+        + [[0.6 * math.cos(2 * math.pi * k / 3 + 0.4), 0.6 * math.sin(2 * math.pi * k / 3 + 0.4), 0.8] for k in range(3)])),
     # seven random points and their negatives: Ci, a point inversion and nothing else
     "centrosymmetric": (lambda q: np.concatenate([q, -q]))(
         np.random.default_rng(0).normal(size=(7, 3)) * [1.0, 0.8, 0.6]),
@@ -397,6 +403,7 @@ GROUP_SHAPES = [
     ("tetrahedron", lambda: convex_solid(POLYHEDRA["tetrahedron"], 0.1), "Td", 24, 0),
     ("cube", lambda: convex_solid(POLYHEDRA["cube"], 0.05), "Oh", 48, 0),
     ("octahedron", lambda: convex_solid(POLYHEDRA["octahedron"], 0.07), "Oh", 48, 0),
+    ("icosahedron", lambda: convex_solid(POLYHEDRA["icosahedron"], 0.08), "Ih", 120, 0),
     ("disphenoid", lambda: convex_solid(POLYHEDRA["disphenoid"]), "D2d", 8, 0),
     ("antiprism5", lambda: convex_solid(antiprism(5, 0.45)), "D5d", 20, 0),
     ("antiprism6", lambda: convex_solid(antiprism(6, 0.5)), "D6d", 24, 0),

@@ -159,18 +159,11 @@ class GroupConfig:
             distorted; most often the orientation-reversing half, a chiral shape's mirrors),
             ``'drop'`` reports the subgroup as the group (the half's distortions stay in
             ``diagnostics.group.near_symmetry_coset``); ``'keep'`` reports the whole group.
-        dipoles: weight of the dipole constraints beside the disks (each tuple point's disk
-            tilted towards the next, ``constraints.dipole_coefficients``; 0: none). They pin the
-            bands that every mirror through the tuple points negates (a regular hexagonal prism:
-            6 of its 24 elements without them); at full weight they decide against the disks
-            where both pin (Watertight 156's thin top: the half turn composed with the swap of
-            its two faces), at half weight only where the disks leave a band to noise.
-        merged_gap: where the group found has no element of order above 2 but the spectrum has
-            multiplicities (``group_path.has_multiplicities``: 2-D eigenspaces no such group
-            explains), the path runs again in bands merged across gaps below this many local
-            spacings (a near-isometry splits the eigenspaces its rotations mix), and the larger
-            group is kept; 0: never. merged_desc_tol: the descriptor gate's ``desc_tol`` in that run
-            (at least ``desc_tol``): the near-isometry moves the descriptors of true partners too.
+        dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
+            next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
+            kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
+            pin the bands that every mirror through the tuple points negates (a regular hexagonal
+            prism: 6 of its 24 elements without them).
     """
 
     refine: str = "zoomout"
@@ -193,7 +186,7 @@ class GroupConfig:
     near_mirrors: str = "drop"
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
-    dipoles: float = 0.5
+    dipoles: float = 1.0
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):

@@ -22,10 +22,11 @@ here or in :mod:`.candidates` / :mod:`.group_elements`, and its seconds are kept
    by the geodesic ratio test (``delta``) and by descriptor agreement.
 5. **procrustes** (:func:`candidate_fmaps`): batched ``block_procrustes`` over all candidates,
    with the reflection path's constraints (geodesic disks around each tuple point, the descriptors
-   unchanged) and dipoles beside them at half weight (each tuple point's disk tilted towards the
+   unchanged), and again with dipoles beside them (each tuple point's disk tilted towards the
    next, ``constraints.dipole_coefficients``: a disk is even under every mirror through its
    centre, so where every tuple point lies on mirror planes the disks leave the bands those
-   mirrors negate to noise); the ``max_candidates`` best fits go on.
+   mirrors negate to noise), that solution kept where it differs; the ``max_candidates`` best fits
+   of each go on.
 6. **icp**: a few batched spectral-ICP steps on every candidate (:func:`batched_icp`), so that the
    candidates of one symmetry found from different tuples agree (raw Procrustes solutions of noisy
    tuples scatter by more than the gap between elements).
@@ -256,7 +257,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         return trivial("no candidate survived pruning")
     dip = (cfg.dipoles * dipole_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields, pts.points)
            if cfg.dipoles > 0 else None)
-    C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates, dip)
+    C = candidate_fmaps(pairs, coef, desc, spectrum, basis, dev, cfg.max_candidates, dip, cfg.bandwidth)
     if len(C) < len(pairs.src):
         diag = replace(diag, n_candidates_kept=len(C))
     lap("procrustes")
@@ -413,17 +414,35 @@ def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int,
 
 
 def candidate_fmaps(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, basis: GroupBasis,
-                    device: torch.device, max_candidates: int, dip: Tensor | None = None) -> Tensor:
-    """Stage 5: [B, k0, k0] one matrix per tuple pair, all in one batched block Procrustes; of more
-    than ``max_candidates``, those whose matrix fits its constraints best (relative residual).
-    ``coef`` [n, R, k0]: the points' disk coefficients; ``dip`` [n, n, R, k0]: their dipoles,
-    already weighted (:func:`_constraints`)."""
-    A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, dip))
-    C = block_procrustes(A, B, basis.bands0)
-    if len(C) > max_candidates:
+                    device: torch.device, max_candidates: int, dip: Tensor | None = None,
+                    same: float = 0.6) -> Tensor:
+    """Stage 5: [B', k0, k0] matrices of the tuple pairs in batched block Procrustes; of more than
+    ``max_candidates``, those whose matrix fits its constraints best (relative residual).
+    ``coef`` [n, R, k0]: the points' disk coefficients; ``dip`` [n, n, R, k0]: their dipoles
+    (:func:`_constraints`). With ``dip``, each pair is solved with the disks alone and with the
+    dipoles beside them, and a dipole solution goes on too where it differs from the pair's disk
+    solution by more than ``same`` (Frobenius; the clustering's bandwidth, under which the two
+    would merge anyway): where the disks pin every band the two agree and nothing is added; where
+    every tuple point lies on mirror planes the disks leave the bands those mirrors negate to noise
+    (a regular hexagonal prism: 6 of its 24 elements without the dipoles), and the dipoles pin
+    them. Neither set alone serves every shape: the dipoles outvote the disks on Watertight 156's
+    thin top (the half turn composed with the swap of its two faces), at half weight they lose a
+    strongly bent slab's cap swaps (star6_h03_bent3: C6v for D6h)."""
+    out = []
+    for d in ([None] if dip is None else [None, dip]):
+        A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, d))
+        C = block_procrustes(A, B, basis.bands0)
+        keep = torch.arange(len(C), device=C.device)
+        if out:  # the dipole solutions that differ from their pair's disk solution
+            keep = keep[(C - out[0][0]).flatten(1).norm(dim=1) > same]
         fit = (C @ A - B).square().sum((-2, -1)) / B.square().sum((-2, -1))
-        C = C[torch.argsort(fit)[:max_candidates]]
-    return C
+        out.append((C, keep, fit))
+    picked = []
+    for C, keep, fit in out:
+        if len(keep) > max_candidates:
+            keep = keep[torch.argsort(fit[keep])[:max_candidates]]
+        picked.append(C[keep])
+    return torch.cat(picked)
 
 
 def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tuple[list[Tensor], list[int]]:
