@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["klc_threshold", "EPS_KLC"]
+__all__ = ["klc_threshold", "EPS_KLC", "mean_edge"]
 
 
 def klc_threshold(area: float) -> float:
@@ -17,3 +17,14 @@ def klc_threshold(area: float) -> float:
 
 
 EPS_KLC = klc_threshold(1.0)  # the KLC10 radius on a unit-area shape
+
+
+def mean_edge(verts, faces) -> float:
+    """Mean edge length of a triangle mesh ``verts [V, 3]``, ``faces [F, 3]``, in the units of
+    ``verts`` (each interior edge counted twice, from its two faces: the same mean)."""
+    import numpy as np
+    import torch
+
+    v = torch.as_tensor(np.asarray(verts, dtype=np.float64))
+    f = torch.as_tensor(np.asarray(faces, dtype=np.int64))
+    return float((v[f] - v[f.roll(1, 1)]).norm(dim=-1).mean())

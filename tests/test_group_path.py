@@ -15,7 +15,7 @@ from symtorch.detect.group_path import has_multiplicities, near_symmetry_coset, 
 from symtorch.eval import klc_threshold
 from symtorch.eval.groups import dihedral_orbit_errors, element_rates
 from symtorch.geodesics import GeodesicSolver
-from symtorch.groups import check_group
+from symtorch.groups import cayley_table, check_group
 
 from shapes import SUB, armed_ball, detect_quietly, matrix_order  # tests/shapes.py
 
@@ -265,10 +265,8 @@ def test_min_order_stops_after_the_coarse_stage():
 
 
 def _table(mats) -> np.ndarray:
-    """[G, G] table of a matrix group, ``table[a, b]`` = index of ``mats[a] @ mats[b]``."""
-    M = np.stack(mats)
-    return np.array([[int(np.abs(M - M[a] @ M[b]).sum((1, 2)).argmin()) for b in range(len(M))]
-                     for a in range(len(M))])
+    """[G, G] table of a matrix group (``groups.cayley_table``)."""
+    return cayley_table(torch.as_tensor(np.stack(mats)))[0].numpy()
 
 
 def test_near_symmetry_coset_rule():

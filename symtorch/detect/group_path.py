@@ -74,13 +74,12 @@ from torch import Tensor
 from ..cluster import mean_shift
 from ..descriptors import descriptors
 from ..geodesics import GeodesicSolver
-from ..groups.algebra import cayley_table
+from ..groups.algebra import _subtable, _z2_homs, cayley_table, identity_index
 from ..groups.naming import GroupInfo, fixes_points, group_info, kind_of, orientation_score
-from ..groups.algebra import _z2_homs
 from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
 from ..procrustes import block_procrustes
 from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solved_bands
-from ..units import EPS_KLC
+from ..units import EPS_KLC, mean_edge
 from .candidates import Pinning, invariant_points, partner_mask, tuple_pairs
 from .config import GroupConfig
 from .constraints import descriptor_coefficients, dipole_coefficients, disk_coefficients
@@ -387,15 +386,12 @@ def continuous_test(geo: Geometry, solver: GeodesicSolver, bands: list[range], k
     return all(passed), diag
 
 
-def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int,
-                 dip: Tensor | None = None) -> tuple[Tensor, Tensor]:
+def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int) -> tuple[Tensor, Tensor]:
     """[B, k0, J] constraint coefficients ``(A, B)`` with ``C A ≈ B`` for each tuple pair.
 
     ``1_{g(p)} ∘ g = 1_p``: the functions (A) are disks at the targets q, their pull-backs (B) at
-    the sources p; the descriptors are their own pull-backs; with ``dip`` [n, n, R, k0]
-    (``constraints.dipole_coefficients``), also the dipole at each tuple point towards the next
-    (cyclically), at q and at p. ``coef`` [n, R, k0]: the disk coefficients of the points; a tuple
-    padded with -1 (shorter than the longest) gets zero columns.
+    the sources p; the descriptors are their own pull-backs. ``coef`` [n, R, k0]: the disk
+    coefficients of the points; a tuple padded with -1 (shorter than the longest) gets zero columns.
     """
     E0 = spectrum.evecs[:, :k0]
     A_disk = torch.cat([coef, torch.zeros_like(coef[:1])]).permute(2, 0, 1)  # [k0, n + 1, R]: -1 -> 0
@@ -404,13 +400,19 @@ def _constraints(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, k0: int,
     Bn = len(Pt)
     A = torch.cat([A_disk[:, Qt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
     B = torch.cat([A_disk[:, Pt].permute(1, 0, 2, 3).reshape(Bn, k0, -1), A_desc.expand(Bn, -1, -1)], -1)
-    if dip is not None:
-        n = dip.shape[0]
-        D = dip.new_zeros(n + 1, n + 1, *dip.shape[2:])  # -1 (padding) -> zeros
-        D[:n, :n] = dip
-        A = torch.cat([A, D[Qt, Qt.roll(-1, 1)].reshape(Bn, -1, k0).mT], -1)
-        B = torch.cat([B, D[Pt, Pt.roll(-1, 1)].reshape(Bn, -1, k0).mT], -1)
     return A, B
+
+
+def _dipole_constraints(pairs, dip: Tensor) -> tuple[Tensor, Tensor]:
+    """[B, k0, J'] the dipole columns of each tuple pair, beside :func:`_constraints`' ``(A, B)``:
+    the dipole at each tuple point towards the next (cyclically), at q (A) and at p (B).
+    ``dip`` [n, n, R, k0] (``constraints.dipole_coefficients``); -1 padding gets zero columns."""
+    n, k0 = dip.shape[0], dip.shape[-1]
+    D = dip.new_zeros(n + 1, n + 1, *dip.shape[2:])  # -1 (padding) -> zeros
+    D[:n, :n] = dip
+    Pt, Qt = torch.as_tensor(pairs.src), torch.as_tensor(pairs.dst)
+    Bn = len(Pt)
+    return (D[Qt, Qt.roll(-1, 1)].reshape(Bn, -1, k0).mT, D[Pt, Pt.roll(-1, 1)].reshape(Bn, -1, k0).mT)
 
 
 def candidate_fmaps(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, basis: GroupBasis,
@@ -428,9 +430,13 @@ def candidate_fmaps(pairs, coef: Tensor, desc: Tensor, spectrum: Spectrum, basis
     them. Neither set alone serves every shape: the dipoles outvote the disks on Watertight 156's
     thin top (the half turn composed with the swap of its two faces), at half weight they lose a
     strongly bent slab's cap swaps (star6_h03_bent3: C6v for D6h)."""
+    A0, B0 = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0))
+    systems = [(A0, B0)]
+    if dip is not None:
+        Ad, Bd = (x.to(device) for x in _dipole_constraints(pairs, dip))
+        systems.append((torch.cat([A0, Ad], -1), torch.cat([B0, Bd], -1)))
     out = []
-    for d in ([None] if dip is None else [None, dip]):
-        A, B = (x.to(device) for x in _constraints(pairs, coef, desc, spectrum, basis.k0, d))
+    for A, B in systems:
         C = block_procrustes(A, B, basis.bands0)
         keep = torch.arange(len(C), device=C.device)
         if out:  # the dipole solutions that differ from their pair's disk solution
@@ -497,7 +503,7 @@ def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
     T = np.asarray(table)
     d = np.asarray(distortion, dtype=np.float64)
     rev = None if reversing is None else np.asarray(reversing, dtype=bool)
-    e = int(np.flatnonzero((T == np.arange(len(T))[None]).all(1))[0])
+    e = identity_index(torch.as_tensor(T))
     best, best_ratio = None, 0.0
     for coset in _z2_homs(T, e):
         inner = np.flatnonzero(~coset)
@@ -537,9 +543,7 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
         if near_mirrors != "drop":
             break
         keep = np.flatnonzero(~coset)
-        renumber = np.full(len(elements), -1)
-        renumber[keep] = np.arange(len(keep))
-        table = renumber[table[np.ix_(keep, keep)]]
+        table = _subtable(table, keep)
         elements = [elements[i] for i in keep]
         rev = [rev[i] for i in keep]
     if said:
@@ -595,12 +599,6 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
 
 
 # ------------------------------------------------------------------------------------------ helpers
-def mean_edge(verts, faces) -> float:
-    """Mean edge length of a triangle mesh (each interior edge counted twice: the same mean)."""
-    v, f = torch.as_tensor(np.asarray(verts, dtype=np.float64)), torch.as_tensor(np.asarray(faces))
-    return float((v[f] - v[f.roll(1, 1)]).norm(dim=-1).mean())
-
-
 def _at_most(spectrum: Spectrum, n: int) -> Spectrum:
     """The spectrum cut at the band end nearest ``n`` (unchanged when it has no more)."""
     K = spectrum.evals.shape[0]

@@ -22,6 +22,7 @@ import torch
 from torch import Tensor
 
 from ..orientation import vertex_normals
+from ..units import mean_edge
 from .algebra import (_check_p2p, _check_reversing, _check_table, _generated, _is_table, _orders_np,
                       _subtable, _z2_homs, cayley_table, check_group, element_orders, identity_index,
                       inverses)
@@ -264,10 +265,8 @@ def fixes_points(p2p: Tensor, verts: Tensor, faces: Tensor, *, edges: float = 2.
         [...] bool.
     """
     verts = torch.as_tensor(verts)
-    faces = torch.as_tensor(faces, device=verts.device).long()
     p2p = _check_p2p(p2p, n_verts=verts.shape[0]).to(verts.device)
-    edge = (verts[faces] - verts[faces.roll(1, -1)]).norm(dim=-1).mean()
-    return (verts[p2p] - verts).norm(dim=-1).amin(-1) < edges * edge
+    return (verts[p2p] - verts).norm(dim=-1).amin(-1) < edges * mean_edge(verts.cpu(), torch.as_tensor(faces).cpu())
 
 
 def orientation_reversing(p2p: Tensor, verts: Tensor, faces: Tensor, *, max_stretch: float = 3.0) -> bool:
