@@ -67,7 +67,8 @@ def main() -> None:
             ct = res.diagnostics.group.continuous_test
             edge = mean_edge(np.asarray(v) * float(res.spectrum.scale), f) / EPS_KLC
             d = [ct.get(f"angle_{a}", {}).get("distortion") for a in (0.55, 0.83)]
-            txt = " / ".join("snapped" if x is None else f"{x:.3f}" for x in d)
+            # none: that angle's block snapped away (stay >= 0.1), or an earlier angle failed and it did not run
+            txt = " / ".join("–" if x is None else f"{x:.3f}" for x in d)
             edges = " / ".join("–" if x is None else f"{x / edge:.2f}" for x in d)
             verdict = "continuous" if res.continuous else f"{res.group.name} ({res.group.order})"
             print(f"| {label} | {len(v)} | {truth} | {ct.get('tested_band')} | {txt} | {edges} | "

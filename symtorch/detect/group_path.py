@@ -329,11 +329,12 @@ def continuous_test(geo: Geometry, solver: GeodesicSolver, bands: list[range], k
     pair), and rotating the axial mode into the pair snaps away.
 
     How isometric: a vertex map of an exact isometry still moves each image to a vertex, which
-    costs about a quarter of the mean edge length in ``|d(g x, g y) - d(x, y)|`` (0.23-0.32 edges,
-    measured on spheres, ellipsoids, tori and capsules, regular and ACVD-remeshed); the refined
+    costs up to about a quarter of the mean edge length in ``|d(g x, g y) - d(x, y)|`` (0.04-0.32
+    edges on spheres, ellipsoids, tori, capsules, cylinders and cones, regular and ACVD-remeshed:
+    ``scripts/continuous_test_table.py``); the refined
     rotation must stay within ``max_edges`` mean edges ``edge`` (twice that floor; unit-area shape)
     and ``max_distortion`` KLC radii. A near-round polyhedron (a square antiprism) keeps the rotation
-    put in but bends it by more than its resolution: 1.2-1.4 edges, where the finite group's own
+    put in but bends it by more than its resolution: 1.36 edges, where the finite group's own
     elements are exact.
 
     How near: a group with rotations by ``2 pi / n`` can snap an angle by as little as its distance
