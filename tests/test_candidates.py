@@ -98,3 +98,29 @@ def test_descriptor_ratios_look_around_a_point_displaced_along_its_ridge():
     dist = np.ones((5, 5)) - np.eye(5)
     assert partner_mask(desc_all[P], dist, 0.3, (desc_all, mask))[0, 1]
     assert not partner_mask(desc_all[P], dist, 0.3)[0, 1]
+
+
+def test_top_of_hill_tells_a_peak_from_a_ripple():
+    """0-dimensional persistence in a ball: on a grid, a tall bump's top stands a tenth of the range
+    above every path to a higher vertex; a ripple on its flank (a hundredth high) does not, nor
+    does a vertex on the slope; the ripple tops a hill of its own, under a thousandth high."""
+    import scipy.sparse as sp
+
+    from symtorch.detect.candidates import _top_of_hill
+
+    n = 41
+    xy = np.stack(np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n)), -1).reshape(-1, 2)
+    idx = np.arange(n * n).reshape(n, n)
+    rows = np.concatenate([idx[:, :-1].ravel(), idx[:-1].ravel()])
+    cols = np.concatenate([idx[:, 1:].ravel(), idx[1:].ravel()])
+    adj = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n * n, n * n))
+    adj = (adj + adj.T).tocsr()
+    f = np.exp(-((xy ** 2).sum(1)) / 0.1)  # the peak at the centre, range ~1
+    f = f + 0.01 * np.exp(-((xy - xy[idx[20, 36]]) ** 2).sum(1) / 0.01)  # on the foot of the peak
+    ripple = int(idx[20, 36])
+    ball = np.ones(n * n, dtype=bool)
+    peak = int(f.argmax())
+    assert peak == idx[20, 20]
+    assert _top_of_hill(f, adj, ball, peak, 0.1)
+    assert not _top_of_hill(f, adj, ball, ripple, 0.1) and _top_of_hill(f, adj, ball, ripple, 1e-4)
+    assert not _top_of_hill(f, adj, ball, idx[20, 26], 0.05)

@@ -44,3 +44,5 @@ def test_invalid_choices_are_refused():
         GroupConfig(near_mirrors="flag")
     with pytest.raises(ValueError, match="merged_gap must be at least 0"):
         GroupConfig(merged_gap=-0.5)
+    with pytest.raises(ValueError, match=r"persistence must be in \[0, 1\)"):
+        GroupConfig(persistence=1.0)

@@ -11,7 +11,8 @@ import torch
 
 from symtorch import detect_symmetries, laplacian_spectrum, shapes
 from symtorch.detect.config import DetectConfig, GroupConfig
-from symtorch.detect.group_path import has_multiplicities, near_symmetry_coset, unexplained_multiplicities
+from symtorch.detect.group_path import (coset_spread, has_multiplicities, near_symmetry_coset,
+                                        unexplained_multiplicities)
 from symtorch.eval import klc_threshold
 from symtorch.eval.groups import dihedral_orbit_errors, element_rates
 from symtorch.geodesics import GeodesicSolver
@@ -338,3 +339,15 @@ def test_mirrors_on_chiral_arms_are_left_out_as_near_symmetries():
         kept = detect_symmetries(v, f, config=DetectConfig(group=GroupConfig(near_mirrors="keep")))
     assert (kept.group.name, kept.group.order) == ("C8v", 16)
     assert len(caught) == 1 and "8 rotations alone" in str(caught[0].message)
+
+
+def test_coset_spread_is_the_most_distorted_half_over_its_subgroup():
+    from shapes import group_mats
+
+    c4v = _table(group_mats(4, vertical_mirrors=True))  # identity, 3 rotations, 4 mirrors
+    one_size = [0.0, 0.02, 0.021, 0.02, 0.019, 0.02, 0.021, 0.02]
+    assert coset_spread(c4v, one_size) < 1.2
+    # mirrors five times the rotations: the orientation coset over C4
+    assert coset_spread(c4v, [0.0, 0.04, 0.04, 0.04, 0.2, 0.2, 0.2, 0.2]) == pytest.approx(5.0)
+    # Cs: no index-2 subgroup with an element besides the identity
+    assert coset_spread(np.array([[0, 1], [1, 0]]), [0.0, 0.3]) == 0.0

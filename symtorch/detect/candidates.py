@@ -23,7 +23,7 @@ from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
 from .verification import standardized_descriptors
 
-__all__ = ["invariant_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
+__all__ = ["invariant_points", "persistent_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
            "candidate_tuples", "tuple_pairs", "TuplePairs"]
 
 
@@ -58,9 +58,7 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
         [N] vertex ids, coarse scales first.
     """
     V = evecs.shape[0]
-    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
-    t0 = 4 * math.log(10) / float(lam[0])
-    h = hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))  # [V, T]
+    h = _hks_scales(evals, evecs, scales)  # [V, T]
     adj = vertex_adjacency(faces, V)
     cand: list[int] = []
     source: dict[int, int] = {}  # the function (scale, sign) a candidate is an extremum of
@@ -82,6 +80,51 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
         if len(keep) == n_max:
             break
     return np.asarray(keep, dtype=np.int64)
+
+
+def _hks_scales(evals: Tensor, evecs: Tensor, scales) -> Tensor:
+    """[V, T] the HKS at times ``scales`` of ``4 ln 10 / lambda_2``."""
+    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
+    t0 = 4 * math.log(10) / float(lam[0])
+    return hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))
+
+
+def persistent_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, points: np.ndarray, *,
+                      share: float = 0.05, radius: float = 2.5, scales=(1.0, 0.1, 0.02)) -> np.ndarray:
+    """[n] bool: the points that are the top of their hill in one of :func:`invariant_points`'
+    functions (an HKS scale, maximum or minimum), a hill ``share`` of its range high.
+
+    A point passes when, within ``radius`` KLC radii of it, no path from it that stays above its
+    value less ``share`` of the function's range reaches a higher vertex (0-dimensional persistence,
+    cut at that ball). On a flat region of a triangulation no symmetry preserves (a prism's cap,
+    remeshed) the finest HKS scale has extrema wherever the mesh puts them, a hundredth of its range
+    high, and at no symmetric spots; the corners, tips and cap centres stand most of the range
+    above their surroundings. Source tuples drawn from the first kind miss every element that
+    maps them nowhere near a point of the set.
+    """
+    h = _hks_scales(evals, evecs, scales).numpy()
+    adj = vertex_adjacency(faces, evecs.shape[0])
+    x = np.asarray(verts_unit)
+    out = np.zeros(len(points), dtype=bool)
+    for i, p in enumerate(np.asarray(points)):
+        ball = np.linalg.norm(x - x[p], axis=1) <= radius * EPS_KLC
+        for col in range(h.shape[1]):
+            for sign in (1.0, -1.0):
+                f = sign * h[:, col]
+                if out[i] or any(f[j] > f[p] for j in adj.indices[adj.indptr[p]:adj.indptr[p + 1]]):
+                    continue
+                out[i] = _top_of_hill(f, adj, ball, int(p), share * float(f.max() - f.min()))
+    return out
+
+
+def _top_of_hill(f: np.ndarray, adj, ball: np.ndarray, p: int, drop: float) -> bool:
+    """Whether no vertex above ``f[p]`` is reached from ``p`` within ``ball`` staying above ``f[p] - drop``."""
+    from scipy.sparse.csgraph import connected_components
+
+    sub = np.flatnonzero(ball & (f >= f[p] - drop))
+    _, lab = connected_components(adj[sub][:, sub], directed=False)
+    comp = sub[lab == lab[np.searchsorted(sub, p)]]
+    return bool(f[comp].max() <= f[p])
 
 
 def _separated(f: np.ndarray, adj, x: np.ndarray, a: int, b: int, radius: float, valley: float) -> bool:
@@ -295,16 +338,23 @@ class TuplePairs(NamedTuple):
 
 
 def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int,
-                delta: float, pinning: Pinning | None = None) -> TuplePairs:
+                delta: float, pinning: Pinning | None = None, persistent: np.ndarray | None = None) -> TuplePairs:
     """A few well-spread source tuples of ``size`` points (more where ``pinning`` says a band is
     held weakly), each paired with every ordered target tuple that keeps its geodesic distances
     (ratio ``delta``) and whose points are allowed partners.
 
-    Source points are taken among those that have a partner other than themselves. Tuples may
-    differ in length; the rows of the result are padded with -1 (``TuplePairs``).
+    Source points are taken among those that have a partner other than themselves; with
+    ``persistent`` (:func:`persistent_points`) and ``size`` such points, the first of the
+    ``n_sources`` tuples is drawn from those alone: a target tuple exists only where the element maps
+    every source point onto a point of the set, which the flat-region extrema of a remesh are not
+    near. Tuples may differ in length; the rows of the result are padded with -1 (``TuplePairs``).
     """
     partner = allowed.sum(1) > 1
-    srcs = source_tuples(dist, size, n_sources, partner, pinning)
+    srcs = []
+    if persistent is not None and n_sources > 1 and (partner & persistent).sum() >= size:
+        srcs = source_tuples(dist, size, 1, partner & persistent, pinning)
+    srcs += [t for t in source_tuples(dist, size, n_sources, partner, pinning)
+             if sorted(t) not in [sorted(u) for u in srcs]][:n_sources - len(srcs)]
     tuples_src, tuples_dst, before = [], [], 0
     width = max([len(t) for t in srcs], default=size)
     for src in srcs:

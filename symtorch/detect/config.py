@@ -164,6 +164,12 @@ class GroupConfig:
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
             pin the bands that every mirror through the tuple points negates (a regular hexagonal
             prism: 6 of its 24 elements without them).
+        persistence: the least height, as a share of its function's range, of the hill an
+            invariant point tops for it to be in the first source tuple
+            (``candidates.persistent_points``; where at least a tuple's worth qualify); 0: none
+            singled out. A remeshed prism's flat
+            caps put extrema of the finest HKS scale at no symmetric spot, a hundredth of the
+            range high; with such points in every source tuple, half of its group was missed.
     """
 
     refine: str = "zoomout"
@@ -187,6 +193,7 @@ class GroupConfig:
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
     dipoles: float = 1.0
+    persistence: float = 0.05
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):
@@ -195,6 +202,8 @@ class GroupConfig:
             raise ValueError(f"near_mirrors must be 'drop' or 'keep', got {self.near_mirrors!r}")
         if self.dipoles < 0:
             raise ValueError(f"dipoles must be at least 0, got {self.dipoles!r}")
+        if not 0 <= self.persistence < 1:
+            raise ValueError(f"persistence must be in [0, 1), got {self.persistence!r}")
         if self.merged_gap < 0:
             raise ValueError(f"merged_gap must be at least 0, got {self.merged_gap!r}")
 

@@ -80,11 +80,11 @@ from ..groups.from_maps import canonical_order, consistent_orientation, largest_
 from ..procrustes import block_procrustes
 from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solved_bands
 from ..units import EPS_KLC, mean_edge
-from .candidates import Pinning, invariant_points, partner_mask, tuple_pairs
+from .candidates import Pinning, invariant_points, partner_mask, persistent_points, tuple_pairs
 from .config import GroupConfig
 from .constraints import descriptor_coefficients, dipole_coefficients, disk_coefficients
 from .group_elements import (OUTLIER_FLOOR, CoarseElements, Element, Geometry, batched_icp, far_above,
-                             upsample_elements, zoomout)
+                             point_map_distortions, upsample_elements, zoomout)
 from .result import Diagnostics, GroupDiagnostics, Symmetry, SymmetryResult
 
 log = logging.getLogger(__name__)
@@ -111,12 +111,14 @@ class GroupBasis(NamedTuple):
 
 
 class PointSet(NamedTuple):
-    """Stage 1: invariant points ``[n]``, their distance fields ``fields [n, V]`` and the
-    symmetrised distances among them ``dist [n, n]`` (unit-area shape)."""
+    """Stage 1: invariant points ``[n]``, their distance fields ``fields [n, V]``, the
+    symmetrised distances among them ``dist [n, n]`` (unit-area shape), and which are
+    ``persistent [n]`` (``candidates.persistent_points``)."""
 
     points: np.ndarray
     fields: Tensor
     dist: np.ndarray
+    persistent: np.ndarray
 
 
 def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int = 60,
@@ -229,10 +231,10 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     def trivial(why: str, continuous: bool = False) -> SymmetryResult:
         return _trivial_result(spectrum, basis, replace(diag, reason=why), continuous, timer)
 
-    pts = invariant_point_set(spectrum, faces, verts_unit, solver, cfg.n_points)
+    pts = invariant_point_set(spectrum, faces, verts_unit, solver, cfg.n_points, cfg.persistence)
     diag = replace(diag, n_points=int(len(pts.points)))
     lap("points")
-    geo = Geometry(verts_unit, spectrum, pts.points, pts.fields, cfg.n_samples)
+    geo = Geometry(verts_unit, spectrum, pts.points, pts.fields, cfg.n_samples, faces)
     lap("samples")
     continuous, diag_c = continuous_test(geo, solver, basis.bands, basis.k0, spectrum.evals,
                                          mean_edge(verts_unit, faces))
@@ -247,7 +249,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     allowed = partner_mask(desc[pts.points], pts.dist, cfg.desc_tol, near)
     coef = disk_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields)  # [n, R, k0]
     pairs = tuple_pairs(pts.dist, allowed, min(basis.m + 1, len(pts.points)), cfg.n_sources, cfg.delta,
-                        Pinning(coef, basis.bands0))
+                        Pinning(coef, basis.bands0), pts.persistent)
     diag = replace(diag, n_points_with_partner=pairs.n_with_partner, tuple_size=pairs.src.shape[1],
                    n_source_tuples=pairs.n_sources, n_candidates_before=pairs.n_before,
                    n_candidates=int(len(pairs.src)))
@@ -287,7 +289,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
-    symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors)
+    symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver)
     lap("group")
     return SymmetryResult(symmetries, spectrum, _bands_upto(basis.bands, basis.k_refine), group=group,
                           timings=dict(timer.timings) if timer is not None else {},
@@ -306,12 +308,14 @@ def group_basis(evals: Tensor, k: int, k_refine: int, refine: str = "zoomout",
 
 
 def invariant_point_set(spectrum: Spectrum, faces, verts_unit: np.ndarray, solver: GeodesicSolver,
-                        n_points: int) -> PointSet:
+                        n_points: int, persistence: float = 0.05) -> PointSet:
     """Stage 1: invariant points (:func:`.candidates.invariant_points`) and their distance fields."""
     pts = invariant_points(spectrum.evals, spectrum.evecs, faces, verts_unit, n_max=n_points)
     fields = torch.as_tensor(np.asarray(solver.distances_from(pts)), dtype=spectrum.evecs.dtype)  # [n, V]
     dist = fields[:, pts].numpy()
-    return PointSet(pts, fields, 0.5 * (dist + dist.T))
+    persistent = (persistent_points(spectrum.evals, spectrum.evecs, faces, verts_unit, pts, share=persistence)
+                  if persistence > 0 else np.ones(len(pts), dtype=bool))
+    return PointSet(pts, fields, 0.5 * (dist + dist.T), persistent)
 
 
 def continuous_test(geo: Geometry, solver: GeodesicSolver, bands: list[range], k0: int,
@@ -501,17 +505,10 @@ def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
         are; None where none is, or where H is the identity alone (Cs keeps its mirror: nothing to
         compare it with).
     """
-    T = np.asarray(table)
     d = np.asarray(distortion, dtype=np.float64)
     rev = None if reversing is None else np.asarray(reversing, dtype=bool)
-    e = identity_index(torch.as_tensor(T))
     best, best_ratio = None, 0.0
-    for coset in _z2_homs(T, e):
-        inner = np.flatnonzero(~coset)
-        inner = inner[inner != e]
-        if len(inner) == 0:
-            continue
-        mc, mh = float(np.median(d[coset])), float(np.median(d[inner]))
+    for coset, inner, mc, mh in _index2_cosets(table, d):
         if rev is not None and (coset == rev).all():
             stands_out = far_above(mc, mh, COSET_RATIO)
         else:
@@ -520,6 +517,30 @@ def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
         if stands_out and ratio > best_ratio:
             best, best_ratio = coset, ratio
     return best
+
+
+def _index2_cosets(table, d: np.ndarray):
+    """Each index-2 coset of the group (``groups.algebra._z2_homs``) with a non-identity subgroup:
+    (coset [G] bool, the subgroup's non-identity elements, the coset's and their median of ``d``)."""
+    T = np.asarray(table)
+    e = identity_index(torch.as_tensor(T))
+    for coset in _z2_homs(T, e):
+        inner = np.flatnonzero(~coset)
+        inner = inner[inner != e]
+        if len(inner):
+            yield coset, inner, float(np.median(d[coset])), float(np.median(d[inner]))
+
+
+def coset_spread(table, distortion) -> float:
+    """The largest ratio of an index-2 coset's median distortion to its subgroup's (0 where the
+    group has no such coset; the subgroup's median floored at 1e-3 KLC radii)."""
+    d = np.asarray(distortion, dtype=np.float64)
+    return max((mc / max(mh, 1e-3) for _, _, mc, mh in _index2_cosets(table, d)), default=0.0)
+
+
+#: a coset this many times its subgroup's distortion is measured again as vertex-to-point maps
+#: (:func:`group_of_elements`): the orientation coset's rule drops at :data:`COSET_RATIO`
+PRECISE_SPREAD = 1.5
 
 
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
@@ -563,11 +584,16 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
-                      near_mirrors: str = "drop") -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
+                      near_mirrors: str = "drop", solver: GeodesicSolver | None = None
+                      ) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
     name, and the elements in the paper's order (Table 3). Where half of the group is a
     near-symmetry riding on the other half (:func:`near_symmetry_coset`: the mirrors of a chiral
-    shape, most often), ``near_mirrors='drop'`` leaves it out: the group is that index-2 subgroup."""
+    shape, most often), ``near_mirrors='drop'`` leaves it out: the group is that index-2 subgroup.
+    Where some index-2 coset reads more than :data:`PRECISE_SPREAD` times its subgroup, the elements
+    are measured again as vertex-to-point maps first (``solver``;
+    ``group_elements.point_map_distortions``): the vertex rounding that every element of a
+    remeshed group shares would otherwise hide how far apart the two halves are."""
     x_unit = geo.verts
     faces_t = torch.as_tensor(faces)
     keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
@@ -576,6 +602,8 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
+    if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
+        elements = point_map_distortions(elements, geo, solver)
     elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag)
     dist = [e.distortion for e in elements]
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
