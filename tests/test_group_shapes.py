@@ -13,7 +13,7 @@ retry), the extruded star (the closure's held-back outliers), the jittered chira
 near-mirror rule off a symmetric triangulation), the regular hexagonal prism (the dipole
 constraints), the pentagonal antiprism and the centrosymmetric solid (inversions named from fixed
 points) and the flat trigonal antiprism (a near-symmetric index-2 coset; ``extended``); the rest
-is ``slow``.
+is ``slow``. Four rows are checked ACVD-remeshed too (``REMESHED``, with pyacvd; extended).
 """
 import warnings
 

@@ -12,6 +12,9 @@ exact measure:
   spread sources ``s`` to the score samples ``x`` (10 heat solves per element). A coarse duplicate
   kept as an alternative that the refined basis tells apart from every element joins as one more;
   the vertex maps are then closed under composition, each new product measured the same way.
+  :func:`point_map_distortions` measures kept elements again as vertex-to-point maps (where the
+  group path asks: a half of the group standing apart from the rest), without the rounding of each
+  image to a vertex that a triangulation no symmetry preserves puts into every element.
 
 The cheap screen uses only the distance fields of the invariant points ``P``: the mean over
 ``p in P`` and the score samples ``x`` of ``|d(pi(p), g(x)) - d(p, x)| - off(p)`` (clamped at 0),
