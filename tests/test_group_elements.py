@@ -195,3 +195,13 @@ def test_vertex_to_point_distortion_removes_the_vertex_rounding():
             assert (before > 0.02).all() and (after <= before).all() and after.mean() < 0.6 * before.mean()
         else:
             assert (after == before).all()
+
+
+def test_two_elements_on_one_map_are_seen():
+    """The exact stage closes the maps again where two coarse elements upsampled onto one map."""
+    from symtorch.detect.group_elements import Element, _Maps
+
+    v, s, bands, k0, bands0, solver, geo, mats, true, fm = _table_setup()
+    els = [Element(f, p, 0.0) for f, p in zip(fm, true)]
+    assert not _Maps(list(els), geo).has_duplicates()
+    assert _Maps(els + [els[3]], geo).has_duplicates()
