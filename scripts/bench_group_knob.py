@@ -83,12 +83,14 @@ def main() -> None:
                     res = detect_symmetries(v, f, mode=args.mode, k_refine=args.k_refine,
                                             config=DetectConfig(group=configs[k]))
                     secs[k].append(clock() - t)
-                groups[k] = res.group.name
+                g = res.diagnostics.group
+                cands = g.n_candidates if g is not None and g.n_candidates is not None else "-"
+                groups[k] = f"{res.group.name}, {cands} cand."  # the candidate tuples the group path kept
         m0, m1 = statistics.median(secs["knobs"]), statistics.median(secs["default"])
         totals["knobs"] += m0
         totals["default"] += m1
-        print(f"{name:18s} {label} {m0:6.2f} s ({groups['knobs']:5s})  default {m1:6.2f} s "
-              f"({groups['default']:5s})  ratio {m1 / m0:.2f}", flush=True)
+        print(f"{name:18s} {label} {m0:6.2f} s ({groups['knobs']:14s})  default {m1:6.2f} s "
+              f"({groups['default']:14s})  ratio {m1 / m0:.2f}", flush=True)
     print(f"{'sum':18s} {totals['knobs']:.2f} s against {totals['default']:.2f} s: ratio "
           f"{totals['default'] / totals['knobs']:.2f}")
 

@@ -21,6 +21,7 @@ from torch import Tensor
 from ..descriptors import hks
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
+from .config import GroupConfig
 from .verification import standardized_descriptors
 
 __all__ = ["invariant_points", "persistent_points", "descriptor_ratios", "partner_mask", "Pinning", "source_tuples",
@@ -90,7 +91,8 @@ def _hks_scales(evals: Tensor, evecs: Tensor, scales) -> Tensor:
 
 
 def persistent_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, points: np.ndarray, *,
-                      share: float = 0.05, radius: float = 2.5, scales=(1.0, 0.1, 0.02)) -> np.ndarray:
+                      share: float = GroupConfig.persistence, radius: float = 2.5,
+                      scales=(1.0, 0.1, 0.02)) -> np.ndarray:
     """[n] bool: the points that are the top of their hill in one of :func:`invariant_points`'
     functions (an HKS scale, maximum or minimum), a hill ``share`` of its range high.
 
@@ -106,39 +108,37 @@ def persistent_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarra
     adj = vertex_adjacency(faces, evecs.shape[0])
     x = np.asarray(verts_unit)
     out = np.zeros(len(points), dtype=bool)
+    funcs = [sign * h[:, col] for col in range(h.shape[1]) for sign in (1.0, -1.0)]
     for i, p in enumerate(np.asarray(points)):
         ball = np.linalg.norm(x - x[p], axis=1) <= radius * EPS_KLC
-        for col in range(h.shape[1]):
-            for sign in (1.0, -1.0):
-                f = sign * h[:, col]
-                if out[i] or any(f[j] > f[p] for j in adj.indices[adj.indptr[p]:adj.indptr[p + 1]]):
-                    continue
-                out[i] = _top_of_hill(f, adj, ball, int(p), share * float(f.max() - f.min()))
+        ring = adj.indices[adj.indptr[p]:adj.indptr[p + 1]]
+        out[i] = any(_top_of_hill(f, adj, ball, int(p), share * float(f.max() - f.min()))
+                     for f in funcs if not (f[ring] > f[p]).any())  # a 1-ring maximum of f first
     return out
 
 
 def _top_of_hill(f: np.ndarray, adj, ball: np.ndarray, p: int, drop: float) -> bool:
     """Whether no vertex above ``f[p]`` is reached from ``p`` within ``ball`` staying above ``f[p] - drop``."""
+    return bool(f[_component(adj, ball & (f >= f[p] - drop), p)].max() <= f[p])
+
+
+def _component(adj, mask: np.ndarray, p: int) -> np.ndarray:
+    """The vertices of ``mask`` [V] bool connected to ``p`` (in ``mask``) through ``mask``."""
     from scipy.sparse.csgraph import connected_components
 
-    sub = np.flatnonzero(ball & (f >= f[p] - drop))
+    sub = np.flatnonzero(mask)
     _, lab = connected_components(adj[sub][:, sub], directed=False)
-    comp = sub[lab == lab[np.searchsorted(sub, p)]]
-    return bool(f[comp].max() <= f[p])
+    return sub[lab == lab[np.searchsorted(sub, p)]]
 
 
 def _separated(f: np.ndarray, adj, x: np.ndarray, a: int, b: int, radius: float, valley: float) -> bool:
     """Whether two maxima ``a``, ``b`` of ``f`` [V] are separated by a valley: no path between them
     within ``radius`` of ``b`` keeps ``f`` above ``min(f[a], f[b]) - valley * range(f)``."""
-    from scipy.sparse.csgraph import connected_components
-
     level = min(f[a], f[b]) - valley * float(f.max() - f.min())
-    sub = np.flatnonzero((np.linalg.norm(x - x[b], axis=1) <= radius) & (f >= level))
-    if a not in sub or b not in sub:
+    mask = (np.linalg.norm(x - x[b], axis=1) <= radius) & (f >= level)
+    if not (mask[a] and mask[b]):
         return True
-    _, lab = connected_components(adj[sub][:, sub], directed=False)
-    pos = np.searchsorted(sub, [a, b])
-    return bool(lab[pos[0]] != lab[pos[1]])
+    return bool(a not in _component(adj, mask, b))
 
 
 class Pinning:

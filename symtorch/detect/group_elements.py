@@ -111,10 +111,10 @@ class Geometry:
 
     def points_of(self, C: Tensor, at: Tensor, nearest: Tensor) -> tuple[Tensor, Tensor]:
         """Images of the vertices ``at`` under ``C [k, k]`` as points of triangles
-        (``vertex_to_point``; ``nearest``: their vertex map): (tri [N, 3], bary [N, 3]). Without
-        faces, the vertices themselves."""
+        (``vertex_to_point``; ``nearest``: their vertex map): (tri [N, 3], bary [N, 3]). Needs the
+        faces the geometry was built with."""
         if self.faces is None:
-            return nearest[:, None].expand(-1, 3), torch.tensor([1.0, 0.0, 0.0], dtype=C.dtype).expand(len(at), 3)
+            raise ValueError("points_of needs the mesh's faces: Geometry(..., faces=...)")
         E = self.evecs[:, : C.shape[-1]]
         return vertex_to_point(E, self.faces, self.vf, E[at] @ C, nearest)
 
@@ -366,7 +366,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     src = geo.samples[:N_SOURCES].numpy()
     D_src = torch.as_tensor(np.asarray(solver.distances_from(src)))[:, geo.score_samples]
 
-    def exact_distortion(p2p: Tensor, C: Tensor) -> float:
+    def exact_distortion(p2p: Tensor) -> float:
         g = p2p.numpy()
         D_img = torch.as_tensor(np.asarray(solver.distances_from(g[src])))[:, p2p[geo.score_samples]]
         return float((D_img - D_src).abs().mean() / EPS_KLC)
@@ -374,7 +374,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     def from_map(p2p: Tensor) -> Element:
         """The element of a vertex map: its block-projected matrix in the refined basis."""
         Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
-        return Element(Cf, p2p, exact_distortion(p2p, Cf))
+        return Element(Cf, p2p, exact_distortion(p2p))
 
     def grown(e: CoarseElement, screen: bool = False) -> Element | None:
         """``e`` in the refined basis, measured exactly; with ``screen``, None where the cheap
@@ -383,7 +383,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
         if screen and geo.screen(Cf)[0] > max_distortion:
             return None
         p2p = geo.p2p(Cf)
-        return Element(Cf, p2p, exact_distortion(p2p, Cf))
+        return Element(Cf, p2p, exact_distortion(p2p))
 
     V = geo.evecs.shape[0]
     eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
@@ -428,9 +428,9 @@ def point_map_distortions(elements: list[Element], geo: Geometry, solver: Geodes
     map's (:class:`_SourcePool`); the identity as it is. Unchanged without faces.
 
     A vertex map rounds each image to a vertex: on a triangulation that no symmetry preserves (a
-    remesh, a scan) that costs an exact element 0.04-0.06 KLC radii at 3000 vertices, the same in
+    remesh, a scan) that costs an exact element about 0.04 KLC radii at 3000 vertices, the same in
     every element, and hides a near-symmetry a few times above it. As points of triangles the
-    exact elements of a remeshed prism read 0.01."""
+    exact elements of remeshed solids read 0.012-0.018 (``scripts/vertex_rounding_table.py``)."""
     if geo.faces is None or len(elements) < 2:
         return elements
     pool = _SourcePool(geo, solver)

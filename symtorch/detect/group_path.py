@@ -308,7 +308,7 @@ def group_basis(evals: Tensor, k: int, k_refine: int, refine: str = "zoomout",
 
 
 def invariant_point_set(spectrum: Spectrum, faces, verts_unit: np.ndarray, solver: GeodesicSolver,
-                        n_points: int, persistence: float = 0.05) -> PointSet:
+                        n_points: int, persistence: float = GroupConfig.persistence) -> PointSet:
     """Stage 1: invariant points (:func:`.candidates.invariant_points`) and their distance fields."""
     pts = invariant_points(spectrum.evals, spectrum.evecs, faces, verts_unit, n_max=n_points)
     fields = torch.as_tensor(np.asarray(solver.distances_from(pts)), dtype=spectrum.evecs.dtype)  # [n, V]
