@@ -48,6 +48,14 @@ def hks(evals: Tensor, evecs: Tensor, times: Tensor, normalize: bool = False) ->
     return out
 
 
+def hks_at_scales(evals: Tensor, evecs: Tensor, scales) -> Tensor:
+    """[V, T] the HKS at times ``scales`` of ``4 ln 10 / lambda_2`` (1.0: the diffusion time at
+    which the first non-constant mode has decayed to 1e-4; smaller scales see finer features)."""
+    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
+    t0 = 4 * math.log(10) / float(lam[0])
+    return hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))
+
+
 def default_energies(evals: Tensor, n_energies: int = 16) -> tuple[Tensor, float]:
     """WKS log-energy grid and sigma (Aubry et al. 2011): ([E] energies, sigma)."""
     lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]

@@ -414,6 +414,9 @@ GROUP_SHAPES = [
     # regular prisms: corners and cap centres all on mirror planes (the dipole constraints)
     ("hex_prism", lambda: extruded_polygon(6, 0.5, None), "D6h", 24, 0),
     ("hept_prism", lambda: extruded_polygon(7, 0.5, None), "D7h", 28, 0),
+    # near-round: a rotation by an arbitrary angle passes as near-isometric; it changes the heat levels
+    ("nonagon_prism", lambda: extruded_polygon(9, 0.5, None), "D9h", 36, 0),
+    ("antiprism8", lambda: convex_solid(antiprism(8, 0.5)), "D8d", 32, 0),
 ]
 
 

@@ -46,3 +46,5 @@ def test_invalid_choices_are_refused():
         GroupConfig(merged_gap=-0.5)
     with pytest.raises(ValueError, match=r"persistence must be in \[0, 1\)"):
         GroupConfig(persistence=1.0)
+    with pytest.raises(ValueError, match=r"max_level_change must be in \(0, 1\]"):
+        GroupConfig(max_level_change=0.0)

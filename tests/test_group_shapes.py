@@ -12,8 +12,9 @@ adds the thin five-pointed star, the eight arms, the six arms bent at R = 3 (the
 retry), the extruded star (the closure's held-back outliers), the jittered chiral arms (the
 near-mirror rule off a symmetric triangulation), the regular hexagonal prism (the dipole
 constraints), the pentagonal antiprism and the centrosymmetric solid (inversions named from fixed
-points) and the flat trigonal antiprism (a near-symmetric index-2 coset; ``extended``); the rest
-is ``slow``. Four rows are checked ACVD-remeshed too (``REMESHED``, with pyacvd; extended).
+points), the flat trigonal antiprism (a near-symmetric index-2 coset) and the nonagonal prism (not
+continuous: the heat levels; ``extended``); the rest is ``slow``. Six rows are checked
+ACVD-remeshed too (``REMESHED``, with pyacvd; extended).
 """
 import warnings
 
@@ -33,7 +34,7 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = {"star4_thin", "box"}  # the quick run; CI (extended) adds these two, the rest is slow
 EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent", "arms6_bent3", "star5_extruded",
-            "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric"}
+            "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric", "nonagon_prism"}
 
 
 def _params():
@@ -137,7 +138,8 @@ def test_one_warning_per_detection(monkeypatch):
 #: rows whose triangulation, ACVD-remeshed, no symmetry preserves, and which came out wrong there:
 #: a hexagonal prism's flat caps put finest-scale HKS extrema at random spots (persistent sources),
 #: near-symmetric halves under the vertex rounding of every element (vertex-to-point distortions)
-REMESHED = {"hex_prism": "D6h", "pinwheel3": "C3h", "centrosymmetric": "Ci", "antiprism3_flat": "D3d"}
+REMESHED = {"hex_prism": "D6h", "pinwheel3": "C3h", "centrosymmetric": "Ci", "antiprism3_flat": "D3d",
+            "hept_prism": "D7h", "antiprism6": "D6d"}  # the last two: the continuous test's heat levels
 
 
 @pytest.mark.extended

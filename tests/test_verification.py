@@ -1,6 +1,7 @@
 """symtorch.detect.verification: geodesic distortion, orientation vote, descriptor gap."""
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -98,3 +99,34 @@ def test_local_errors_set_aside_a_lone_wrong_image_not_a_wrong_part(mirror3):
     half = torch.where(x > 0, mirror, torch.arange(len(v)))
     skip = local_errors(fields, S, half, desc, 0.5, 2, 3.0)
     assert int(skip.sum()) <= 2 and involution_distortion(fields, S, half, skip).worst > 0.5
+
+
+def _rotation_map(v: np.ndarray, angle: float) -> torch.Tensor:
+    """[V] the vertex map of the rotation about z by ``angle``: the nearest vertex to each image."""
+    from scipy.spatial import cKDTree
+
+    c, s = math.cos(angle), math.sin(angle)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return torch.as_tensor(cKDTree(v).query(v @ R.T)[1])
+
+
+def test_heat_levels_keep_a_rotation_invariant_function_and_see_a_moved_bump():
+    """A rotation's vertex map keeps a function of the height alone (all but rounding, which the
+    2-ring absorbs) and moves a bump off the axis onto where the function is flat; a function
+    nearly constant over the shape (a sphere's HKS) says nothing and is skipped."""
+    from symtorch.detect.verification import HeatLevels
+    from symtorch.shapes import icosphere
+
+    v, f = icosphere(4)
+    mass = torch.ones(len(v), dtype=torch.float64)
+    height = 1.0 + v[:, 2] ** 2  # [V] rotation-invariant, range 1 over a mean of 1.3
+    bump = 1.0 + np.exp(-np.sum((v - [1.0, 0.0, 0.0]) ** 2, 1) / 0.1)  # off the axis
+    flat = 1.0 + 0.01 * np.sin(9 * v[:, 0])  # range 2 % of its mean
+    g = _rotation_map(v, 1.0)
+    same = HeatLevels(torch.as_tensor(np.stack([height, flat], 1)), f)
+    assert same.h.shape[1] == 1  # the flat one skipped
+    assert same.changed_share(g, mass) < 0.005
+    moved = HeatLevels(torch.as_tensor(np.stack([height, bump], 1)), f).changed_share(g, mass)
+    assert moved > 0.05  # where the bump was and where it lands: 8 % of the sphere
+    assert HeatLevels(torch.as_tensor(bump[:, None]), f).changed_share(torch.arange(len(v)), mass) == 0.0
+    assert HeatLevels(torch.as_tensor(flat[:, None]), f).changed_share(g, mass) == 0.0

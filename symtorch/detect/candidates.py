@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..descriptors import hks
+from ..descriptors import hks_at_scales
 from ..units import EPS_KLC
 from ..sampling import local_maxima, vertex_adjacency
 from .config import GroupConfig
@@ -59,7 +59,7 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
         [N] vertex ids, coarse scales first.
     """
     V = evecs.shape[0]
-    h = _hks_scales(evals, evecs, scales)  # [V, T]
+    h = hks_at_scales(evals, evecs, scales)  # [V, T]
     adj = vertex_adjacency(faces, V)
     cand: list[int] = []
     source: dict[int, int] = {}  # the function (scale, sign) a candidate is an extremum of
@@ -83,13 +83,6 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
     return np.asarray(keep, dtype=np.int64)
 
 
-def _hks_scales(evals: Tensor, evecs: Tensor, scales) -> Tensor:
-    """[V, T] the HKS at times ``scales`` of ``4 ln 10 / lambda_2``."""
-    lam = evals[evals > 1e-8 * evals.max().clamp_min(1e-12)]  # skip the constant mode(s)
-    t0 = 4 * math.log(10) / float(lam[0])
-    return hks(evals, evecs, torch.tensor([t0 * s for s in scales], dtype=evals.dtype))
-
-
 def persistent_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, points: np.ndarray, *,
                       share: float = GroupConfig.persistence, radius: float = 2.5,
                       scales=(1.0, 0.1, 0.02)) -> np.ndarray:
@@ -104,7 +97,7 @@ def persistent_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarra
     above their surroundings. Source tuples drawn from the first kind miss every element that
     maps them nowhere near a point of the set.
     """
-    h = _hks_scales(evals, evecs, scales).numpy()
+    h = hks_at_scales(evals, evecs, scales).numpy()
     adj = vertex_adjacency(faces, evecs.shape[0])
     x = np.asarray(verts_unit)
     out = np.zeros(len(points), dtype=bool)

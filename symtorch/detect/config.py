@@ -170,6 +170,10 @@ class GroupConfig:
             singled out. A remeshed prism's flat
             caps put extrema of the finest HKS scale at no symmetric spot, a hundredth of the
             range high; with such points in every source tuple, half of its group was missed.
+        max_level_change: the continuous test's bound on the share of the area whose heat level
+            its rotation changes (``verification.HeatLevels``); 1: no bound. Surfaces of revolution
+            keep all but 2 % of it, prisms and antiprisms of 6-9 sides whose rotation passes as
+            near-isometric change 5-35 %.
     """
 
     refine: str = "zoomout"
@@ -194,6 +198,7 @@ class GroupConfig:
     merged_desc_tol: float = 1.2
     dipoles: float = 1.0
     persistence: float = 0.05
+    max_level_change: float = 0.03
 
     def __post_init__(self):
         if self.refine not in ("zoomout", "icp"):
@@ -204,6 +209,8 @@ class GroupConfig:
             raise ValueError(f"dipoles must be at least 0, got {self.dipoles!r}")
         if not 0 <= self.persistence < 1:
             raise ValueError(f"persistence must be in [0, 1), got {self.persistence!r}")
+        if not 0 < self.max_level_change <= 1:
+            raise ValueError(f"max_level_change must be in (0, 1], got {self.max_level_change!r}")
         if self.merged_gap < 0:
             raise ValueError(f"merged_gap must be at least 0, got {self.merged_gap!r}")
 

@@ -21,7 +21,7 @@ from ..orientation import vertex_normals
 from ..units import EPS_KLC
 
 __all__ = ["Distortion", "isometry_score", "involution_distortion", "local_errors", "involution_error",
-           "descriptor_gap", "standardized_descriptors", "vertex_normals", "orientation_vote"]
+           "descriptor_gap", "standardized_descriptors", "HeatLevels", "vertex_normals", "orientation_vote"]
 
 
 class Distortion(NamedTuple):
@@ -168,6 +168,54 @@ def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
     Z = standardized_descriptors(desc)
     per_vertex = (Z - Z[p2p]).abs().mean(1)
     return float((mass * per_vertex).sum() / mass.sum())
+
+
+class HeatLevels:
+    """Which share of the area a vertex map moves to a different heat level: the test that a
+    rotation by an arbitrary angle is an isometry (``group_path.continuous_test``).
+
+    An isometry keeps the heat kernel signature at every point. Of a vertex map, the image of ``x``
+    is a vertex within about an edge of the true image, so ``h(x)`` must lie within the range ``h``
+    takes on the ``rings``-ring of ``g(x)``; a vertex that falls outside that range by more than
+    ``tol`` of the function's range over the shape has changed level. A surface of revolution
+    keeps the level of (almost) every vertex under any rotation; a prism or an antiprism whose
+    rotation by such an angle passes as near-isometric (its corners carry little area) moves its
+    corners onto the smooth rim between them, and at the finer heat scales they differ.
+    Functions whose range is under ``min_contrast`` of their mean (a sphere's: a few per cent, all
+    of it triangulation) carry no shape and are skipped.
+
+    Args:
+        h: [V, T] heat kernel signatures (``descriptors.hks_at_scales``); faces: [F, 3].
+    """
+
+    def __init__(self, h: Tensor, faces, rings: int = 2, tol: float = 0.1, min_contrast: float = 0.1):
+        import scipy.sparse as sp
+
+        from ..sampling import vertex_adjacency
+
+        x = to_numpy(h).astype(np.float64)
+        V = x.shape[0]
+        A = (vertex_adjacency(faces, V) + sp.eye(V)).tocsr()
+        reach = A
+        for _ in range(rings - 1):
+            reach = (reach @ A).tocsr()
+        spread = x.max(0) - x.min(0)
+        keep = spread >= min_contrast * np.abs(x).mean(0)
+        x, spread = x[:, keep], spread[keep]
+        self.h = x  # [V, T'] the functions kept
+        around = x[reach.indices]  # [nnz, T'] row by row: each vertex's rings
+        self.lo = np.minimum.reduceat(around, reach.indptr[:-1], axis=0)  # [V, T']
+        self.hi = np.maximum.reduceat(around, reach.indptr[:-1], axis=0)
+        self.margin = tol * spread  # [T']
+
+    def changed_share(self, p2p: Tensor, mass: Tensor) -> float:
+        """The largest share, over the functions, of the area whose level the map [V] changes."""
+        if self.h.shape[1] == 0:
+            return 0.0
+        g = to_numpy(p2p)
+        out = np.maximum(self.lo[g] - self.h, self.h - self.hi[g]) > self.margin  # [V, T']
+        w = to_numpy(mass).astype(np.float64)
+        return float((w[:, None] * out).sum(0).max() / w.sum())
 
 
 def orientation_vote(p2p: Tensor, verts: Tensor, normals: Tensor, samples: Tensor, n_neighbors: int = 4,
