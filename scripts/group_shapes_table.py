@@ -6,6 +6,7 @@
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py star6_thin_bent --bend 4 --group partner_radius=0
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --remesh 3000        # every row remeshed (pyacvd)
     OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --random-arms 12 --seed 1   # random bent arms
+    OMP_NUM_THREADS=1 python scripts/group_shapes_table.py --random-shapes 12 --seed 1 --remesh 3000
 
 The shapes are ``tests/shapes.py``'s ``GROUP_SHAPES`` (what ``tests/test_group_shapes.py`` checks)
 and the shapes of the measured limit, :data:`LIMITS`. Per shape, as the tests score it:
@@ -41,7 +42,8 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the shape builders
-from shapes import GROUP_SHAPES, POLYHEDRA, antiprism, armed_ball, bend, convex_solid  # noqa: E402
+from shapes import (GROUP_SHAPES, POLYHEDRA, antiprism, armed_ball, bend, convex_solid, extruded_polygon,  # noqa: E402
+                    pinwheel_prism, star_slab, twisted_blades)
 
 from symtorch import detect_symmetries, laplacian_spectrum  # noqa: E402
 from symtorch.descriptors import descriptors  # noqa: E402
@@ -65,11 +67,9 @@ LIMITS = [(f"arms{n}_swept", (lambda n=n: armed_ball(n, sweep=0.5)), f"C{n}v", 2
 LIMITS += [("arms4_bent2.5", lambda: armed_ball(4), "C4v", 8, 2.5),
            ("chiral6_bent3", lambda: armed_ball(6, chiral=True), "C6", 6, 3.0),
            ("chiral5_bent3", lambda: armed_ball(5, chiral=True), "C5", 5, 3.0)]
-# near-round or near-more-symmetric solids: a square antiprism (its rotation by 0.55 rad bent by
-# 1.2-1.4 mean edges, not continuous, but only D2 found), an S6 solid whose near-D3d half turns
-# and mirrors distort 0.07-0.08 over an exact triangulation (under far_above's 0.1 floor)
-LIMITS += [("antiprism4", lambda: convex_solid(antiprism(4, 0.6)), "D4d", 16, 0),
-           ("s6_solid", lambda: convex_solid(POLYHEDRA["s6"]), "S6", 6, 0)]
+# a near-more-symmetric solid: an S6 solid whose near-D3d half turns and mirrors distort
+# 0.07-0.08 over an exact triangulation (under far_above's 0.1 floor)
+LIMITS += [("s6_solid", lambda: convex_solid(POLYHEDRA["s6"]), "S6", 6, 0)]
 SHAPES = GROUP_SHAPES + LIMITS
 
 
@@ -86,6 +86,41 @@ def random_bent_arms(n_shapes: int, seed: int) -> list:
         build = (lambda n=n, c=chiral, e=elev, ln=length, w=width:
                  armed_ball(n, chiral=c, elev=e, length=ln, width=w))
         rows.append((name, build, f"C{n}" if chiral else f"C{n}v", n if chiral else 2 * n, radius))
+    return rows
+
+
+def random_shapes(n_shapes: int, seed: int) -> list:
+    """Rows drawn at random from every family of the table (``--random-shapes``), with parameters
+    the tests do not use: star slabs (3-8 points, height 0.2-0.6, inner radius 0.4-0.7), extruded
+    regular polygons (3-8 sides, height 0.3-1.0), pinwheels (3-6 blades, height 0.2-0.5), twisted
+    blades (2-5, twist 0.8-1.6), armed balls (4-10 arms, 30 % chiral, elevation -30 to -5 degrees),
+    antiprisms (3-7 sides, half height 0.3-0.8); a third of them bent at R = 4-8 (not the
+    antiprisms, whose bend is no isometry of a convex solid's metric)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for _ in range(n_shapes):
+        kind = str(rng.choice(["star", "prism", "pinwheel", "blades", "arms", "antiprism"]))
+        if kind == "star":
+            n, h, inner = int(rng.integers(3, 9)), float(rng.uniform(0.2, 0.6)), float(rng.uniform(0.4, 0.7))
+            name, build, truth = f"star{n} h={h:.2f} inner={inner:.2f}", (lambda n=n, h=h, i=inner: star_slab(n, h, i)), (f"D{n}h", 4 * n)
+        elif kind == "prism":
+            n, h = int(rng.integers(3, 9)), float(rng.uniform(0.3, 1.0))
+            name, build, truth = f"prism{n} h={h:.2f}", (lambda n=n, h=h: extruded_polygon(n, h, None)), (f"D{n}h", 4 * n)
+        elif kind == "pinwheel":
+            n, h = int(rng.integers(3, 7)), float(rng.uniform(0.2, 0.5))
+            name, build, truth = f"pinwheel{n} h={h:.2f}", (lambda n=n, h=h: pinwheel_prism(n, h)), (f"C{n}h", 2 * n)
+        elif kind == "blades":
+            n, tw = int(rng.integers(2, 6)), float(rng.uniform(0.8, 1.6))
+            name, build, truth = f"blades{n} twist={tw:.2f}", (lambda n=n, t=tw: twisted_blades(n, t)), (f"D{n}", 2 * n)
+        elif kind == "arms":
+            n, chiral, elev = int(rng.integers(4, 11)), bool(rng.random() < 0.3), float(rng.uniform(-30, -5))
+            name = f"{'chiral' if chiral else 'arms'}{n} elev={elev:.0f}"
+            build, truth = (lambda n=n, c=chiral, e=elev: armed_ball(n, chiral=c, elev=e)), ((f"C{n}", n) if chiral else (f"C{n}v", 2 * n))
+        else:
+            n, h = int(rng.integers(3, 8)), float(rng.uniform(0.3, 0.8))
+            name, build, truth = f"antiprism{n} h={h:.2f}", (lambda n=n, h=h: convex_solid(antiprism(n, h))), (f"D{n}d", 4 * n)
+        radius = float(rng.choice([4, 5, 6, 8])) if kind != "antiprism" and rng.random() < 1 / 3 else 0
+        rows.append((name + (f" R={radius:g}" if radius else ""), build, *truth, radius))
     return rows
 
 
@@ -151,7 +186,9 @@ def main() -> None:
                          "pip install pyacvd): the triangulation no longer symmetric, the truth by nearest vertices")
     ap.add_argument("--random-arms", type=int, default=None, metavar="N",
                     help="instead of the table's rows, N bent armed balls drawn at random (--seed)")
-    ap.add_argument("--seed", type=int, default=1, help="--random-arms' seed")
+    ap.add_argument("--random-shapes", type=int, default=None, metavar="N",
+                    help="instead of the table's rows, N shapes of every family drawn at random (--seed)")
+    ap.add_argument("--seed", type=int, default=1, help="--random-arms' and --random-shapes' seed")
     ap.add_argument("--group", nargs="*", default=[], metavar="KEY=VALUE", help="GroupConfig fields")
     ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
     ap.add_argument("--truth", action="store_true", help="the true elements' distortion, the screen's "
@@ -167,7 +204,8 @@ def main() -> None:
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
           + ("---:|---|---|---:|" if args.truth else ""))
-    rows = random_bent_arms(args.random_arms, args.seed) if args.random_arms else SHAPES
+    rows = (random_bent_arms(args.random_arms, args.seed) if args.random_arms
+            else random_shapes(args.random_shapes, args.seed) if args.random_shapes else SHAPES)
     for name, build, group, order, radius in rows:
         if args.words and not any(w in name for w in args.words):
             continue

@@ -417,6 +417,8 @@ GROUP_SHAPES = [
     # near-round: a rotation by an arbitrary angle passes as near-isometric; it changes the heat levels
     ("nonagon_prism", lambda: extruded_polygon(9, 0.5, None), "D9h", 36, 0),
     ("antiprism8", lambda: convex_solid(antiprism(8, 0.5)), "D8d", 32, 0),
+    # corners that straddle the suppression radius (the orbit rule of candidates.invariant_points)
+    ("antiprism4", lambda: convex_solid(antiprism(4, 0.6)), "D4d", 16, 0),
 ]
 
 

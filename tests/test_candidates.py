@@ -41,6 +41,32 @@ def test_invariant_points_are_mapped_onto_themselves_by_the_symmetries():
         assert d.max() < EPS_KLC and d.mean() < 0.5 * EPS_KLC, d
 
 
+def test_the_suppression_keeps_an_orbit_whose_members_straddle_its_radius():
+    """A square antiprism's corners lie 0.92 and 1.02 suppression radii from the coarsest scale's
+    maxima, by the triangulation of its caps (split along one diagonal); the suppression must keep
+    all eight or none, so the set stays a union of D4d orbits (``border=0``: half the corners)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from shapes import antiprism, convex_solid
+
+    v, f, mats = convex_solid(antiprism(4, 0.6))
+    spec = laplacian_spectrum(v, f, k=60)
+    unit = np.asarray(v) * spec.scale
+    corners = [int(np.linalg.norm(v - c, axis=1).argmin()) for c in antiprism(4, 0.6)]
+
+    def missed(**kw):
+        pts = invariant_points(spec.evals, spec.evecs, f, unit, n_max=40, **kw)
+        tree = cKDTree(unit[pts])
+        worst = max(tree.query(unit[g[pts]])[0].max() for g in shapes.symmetry_maps(v, mats))
+        return worst, sum(tree.query(unit[c])[0] > 0.5 * EPS_KLC for c in corners)
+
+    worst, corners_missed = missed()
+    assert worst < 0.5 * EPS_KLC and corners_missed == 0, (worst / EPS_KLC, corners_missed)
+    assert missed(border=0.0)[1] == 4
+
+
 def test_source_tuples_are_spread_distinct_and_prefer_usable_points():
     rng = np.random.default_rng(0)
     x = rng.random((12, 3))
