@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the shape builders
-from shapes import (GROUP_SHAPES, POLYHEDRA, antiprism, armed_ball, bend, convex_solid, extruded_polygon,  # noqa: E402
+from shapes import (GROUP_SHAPES, antiprism, armed_ball, bend, convex_solid, extruded_polygon,  # noqa: E402
                     pinwheel_prism, star_slab, twisted_blades)
 
 from symtorch import detect_symmetries, laplacian_spectrum  # noqa: E402
@@ -67,9 +67,6 @@ LIMITS = [(f"arms{n}_swept", (lambda n=n: armed_ball(n, sweep=0.5)), f"C{n}v", 2
 LIMITS += [("arms4_bent2.5", lambda: armed_ball(4), "C4v", 8, 2.5),
            ("chiral6_bent3", lambda: armed_ball(6, chiral=True), "C6", 6, 3.0),
            ("chiral5_bent3", lambda: armed_ball(5, chiral=True), "C5", 5, 3.0)]
-# a near-more-symmetric solid: an S6 solid whose near-D3d half turns and mirrors distort
-# 0.07-0.08 over an exact triangulation (under far_above's 0.1 floor)
-LIMITS += [("s6_solid", lambda: convex_solid(POLYHEDRA["s6"]), "S6", 6, 0)]
 SHAPES = GROUP_SHAPES + LIMITS
 
 

@@ -419,6 +419,8 @@ GROUP_SHAPES = [
     ("antiprism8", lambda: convex_solid(antiprism(8, 0.5)), "D8d", 32, 0),
     # corners that straddle the suppression radius (the orbit rule of candidates.invariant_points)
     ("antiprism4", lambda: convex_solid(antiprism(4, 0.6)), "D4d", 16, 0),
+    # near-D3d: its extra half turns and mirrors change the heat levels (group_path.keep_heat_levels)
+    ("s6_solid", lambda: convex_solid(POLYHEDRA["s6"]), "S6", 6, 0),
 ]
 
 

@@ -351,3 +351,39 @@ def test_coset_spread_is_the_most_distorted_half_over_its_subgroup():
     assert coset_spread(c4v, [0.0, 0.04, 0.04, 0.04, 0.2, 0.2, 0.2, 0.2]) == pytest.approx(5.0)
     # Cs: no index-2 subgroup with an element besides the identity
     assert coset_spread(np.array([[0, 1], [1, 0]]), [0.0, 0.3]) == 0.0
+
+
+def test_elements_that_change_the_heat_levels_are_left_out_where_the_rest_is_a_subgroup():
+    """C4 on a sphere whose heat has two bumps on the x axis: the half turn keeps it, the quarter
+    turns move the bumps onto smooth ground, so {e, half turn} is the group; where the elements
+    that keep it are not closed under the table, none is left out."""
+    from scipy.spatial import cKDTree
+
+    from symtorch.detect.group_elements import Element
+    from symtorch.detect.group_path import keep_heat_levels
+    from symtorch.detect.result import GroupDiagnostics
+    from symtorch.detect.verification import HeatLevels
+
+    v, f = shapes.icosphere(4)
+    bumps = 1.0 + sum(np.exp(-np.sum((v - c) ** 2, 1) / 0.1) for c in ([1.0, 0, 0], [-1.0, 0, 0]))
+    heat = HeatLevels(torch.as_tensor(bumps[:, None]), f)
+    mass = torch.ones(len(v), dtype=torch.float64)
+    tree = cKDTree(v)
+
+    def turn(k):
+        c, s = np.cos(k * np.pi / 2), np.sin(k * np.pi / 2)
+        return Element(torch.eye(4), torch.as_tensor(tree.query(v @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1.0]]))[1]), 0.0)
+
+    elements = [turn(k) for k in range(4)]
+    c4 = np.add.outer(np.arange(4), np.arange(4)) % 4
+    diag = GroupDiagnostics(k0=4, k_refine=4, m=2, bands0=[1])
+    with pytest.warns(UserWarning, match="2 of the 4 elements change the heat levels"):
+        kept, table, rev, diag = keep_heat_levels(elements, c4, [False] * 4, heat, mass, 0.03, diag)
+    assert len(kept) == 2 and torch.equal(kept[1].p2p, elements[2].p2p)
+    assert table.tolist() == [[0, 1], [1, 0]] and len(diag.level_changes) == 2 and min(diag.level_changes) > 0.03
+    # a table in which the keepers {e, half turn} are not closed (the half turn's square a quarter turn)
+    broken = c4.copy()
+    broken[2, 2] = 1
+    same, _, _, d2 = keep_heat_levels(elements, broken, [False] * 4, heat, mass, 0.03,
+                                      GroupDiagnostics(k0=4, k_refine=4, m=2, bands0=[1]))
+    assert len(same) == 4 and d2.level_changes is None

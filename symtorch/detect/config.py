@@ -170,10 +170,12 @@ class GroupConfig:
             singled out. A remeshed prism's flat
             caps put extrema of the finest HKS scale at no symmetric spot, a hundredth of the
             range high; with such points in every source tuple, half of its group was missed.
-        max_level_change: the continuous test's bound on the share of the area whose heat level
-            its rotation changes (``verification.HeatLevels``); 1: no bound. Surfaces of revolution
-            keep all but 2 % of it, prisms and antiprisms of 6-9 sides whose rotation passes as
-            near-isometric change 5-35 %.
+        max_level_change: the most of the area whose heat level an isometry may change
+            (``verification.HeatLevels``): the continuous test's rotation (surfaces of revolution
+            change at most 2 %, prisms and antiprisms of 6-9 sides whose rotation passes as
+            near-isometric 5-35 %), and every element of the group (``group_path.keep_heat_levels``:
+            true elements, bent and remeshed, at most 2 %; an S6 solid's near-D3d half turns 5 %,
+            a square antiprism's eighth turns half the area); 1: neither bound.
     """
 
     refine: str = "zoomout"

@@ -91,7 +91,7 @@ from .verification import HeatLevels
 log = logging.getLogger(__name__)
 
 __all__ = ["detect_group", "GroupBasis", "PointSet", "group_basis", "invariant_point_set",
-           "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives",
+           "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives", "keep_heat_levels",
            "group_of_elements", "near_symmetry_coset", "has_multiplicities", "unexplained_multiplicities"]
 
 
@@ -293,7 +293,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
-    symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver)
+    symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver,
+                                                heat, cfg.max_level_change)
     lap("group")
     return SymmetryResult(symmetries, spectrum, _bands_upto(basis.bands, basis.k_refine), group=group,
                           timings=dict(timer.timings) if timer is not None else {},
@@ -559,6 +560,35 @@ def coset_spread(table, distortion) -> float:
 PRECISE_SPREAD = 1.5
 
 
+def keep_heat_levels(elements: list[Element], table, rev: list[bool], heat: HeatLevels, mass: Tensor,
+                     max_changed: float, diag: GroupDiagnostics
+                     ) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
+    """The elements that keep the heat levels, where they form a subgroup.
+
+    An isometry keeps the heat kernel signature everywhere (:class:`.verification.HeatLevels`): the
+    true elements of every shape of the tables, bent, swept and remeshed ones included, change the
+    heat level of at most 2 % of the area. A near-symmetry of a near-more-symmetric shape can pass
+    every distortion test and still move its features onto others: a square antiprism's eighth
+    turns (the corners onto the middles of the other cap's edges: half the area), an S6 solid's
+    near-D3d half turns (5 %), a remeshed pinwheel's near mirrors (20 %). The elements that change
+    more than ``max_changed`` of it are left out where the others are closed under the table (a
+    subgroup); where they are not, nothing is (the measure, not the group, is then in doubt).
+    One warning says so; ``diag.level_changes`` keeps their shares.
+    """
+    table = np.asarray(table)
+    share = np.asarray([heat.changed_share(e.p2p, mass) for e in elements])
+    keep = np.flatnonzero(share <= max_changed)
+    if len(keep) == len(elements) or not np.isin(table[np.ix_(keep, keep)], keep).all():
+        return elements, table, rev, diag
+    out = np.setdiff1d(np.arange(len(elements)), keep)
+    warnings.warn(f"{len(out)} of the {len(elements)} elements change the heat levels of "
+                  f"{share[out].min():.0%}-{share[out].max():.0%} of the area (an isometry keeps them): "
+                  f"near-symmetries, left out; the group is the {len(keep)} that keep them "
+                  f"(diagnostics.group.level_changes)", stacklevel=3)
+    diag = replace(diag, level_changes=[round(float(x), 4) for x in share[out]])
+    return [elements[i] for i in keep], _subtable(table, keep), [rev[i] for i in keep], diag
+
+
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
                           diag: GroupDiagnostics) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
     """:func:`near_symmetry_coset`, until none is left (``near_mirrors='drop'``: each round halves
@@ -600,7 +630,8 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
-                      near_mirrors: str = "drop", solver: GeodesicSolver | None = None
+                      near_mirrors: str = "drop", solver: GeodesicSolver | None = None,
+                      heat: HeatLevels | None = None, max_changed: float = GroupConfig.max_level_change
                       ) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
     name, and the elements in the paper's order (Table 3). Where half of the group is a
@@ -609,7 +640,9 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     Where some index-2 coset reads more than :data:`PRECISE_SPREAD` times its subgroup, the elements
     are measured again as vertex-to-point maps first (``solver``;
     ``group_elements.point_map_distortions``): the vertex rounding that every element of a
-    remeshed group shares would otherwise hide how far apart the two halves are."""
+    remeshed group shares would otherwise hide how far apart the two halves are. With ``heat``,
+    the elements that change the heat levels of more than ``max_changed`` of the area are left out
+    first, where the rest is a subgroup (:func:`keep_heat_levels`)."""
     x_unit = geo.verts
     faces_t = torch.as_tensor(faces)
     keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
@@ -618,6 +651,8 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
+    if heat is not None:
+        elements, table, rev, diag = keep_heat_levels(elements, table, list(rev), heat, geo.mass, max_changed, diag)
     if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
         elements = point_map_distortions(elements, geo, solver)
     elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag)

@@ -153,7 +153,9 @@ class GroupDiagnostics:
             elements left out of the largest closed subset; cayley_max_residual: largest residual of
             the matrices' table; distortion: per element of the result; near_symmetry_coset: the
             distortions of the orientation-reversing elements where they read as near-symmetries
-            on near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`).
+            on near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`);
+            level_changes: the share of the area whose heat level each element left out by
+            :func:`~symtorch.detect.group_path.keep_heat_levels` changes.
         name, order: the group found; reason: why the trivial group was returned early.
     """
 
@@ -179,6 +181,7 @@ class GroupDiagnostics:
     rejected_exact: list[float] | None = None
     dropped: list[int] | None = None
     near_symmetry_coset: list[float] | None = None
+    level_changes: list[float] | None = None
     cayley_max_residual: float | None = None
     distortion: list[float] | None = None
     name: str = "C1"
