@@ -27,6 +27,10 @@ distortions (``diagnostics.group.rejected_distortion``), and, over the orientati
 found, the medians of their per-vertex distortion (mean over 16 farthest-point sources of
 ``|d(g s, g x) - d(s, x)|``: median / 95th percentile over the vertices) and of the change of the
 standardised descriptors on the worst 1 % of the area (``verification.standardized_descriptors``).
+``--levels`` adds the share of the area whose heat level each element found changes
+(``verification.HeatLevels``, the measure of ``group_path.keep_heat_levels``): the largest over the
+elements that match a true one, and the range over the spurious ones; with ``--group
+max_level_change=1 near_mirrors='"keep"'`` the elements that measure would leave out stay in.
 """
 from __future__ import annotations
 
@@ -50,7 +54,8 @@ from symtorch.descriptors import descriptors  # noqa: E402
 from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
 from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
 from symtorch.detect.group_path import invariant_point_set  # noqa: E402
-from symtorch.detect.verification import isometry_score, standardized_descriptors  # noqa: E402
+from symtorch.detect.verification import HeatLevels, isometry_score, standardized_descriptors  # noqa: E402
+from symtorch.descriptors import hks_at_scales  # noqa: E402
 from symtorch.sampling import farthest_point_sampling  # noqa: E402
 from symtorch.units import EPS_KLC  # noqa: E402
 from symtorch.eval.groups import element_rates  # noqa: E402
@@ -174,6 +179,17 @@ def partner_ratios(v, f, true_maps: np.ndarray, cfg: GroupConfig) -> np.ndarray:
     return np.asarray(out)
 
 
+def level_columns(f, res, sc) -> str:
+    """The ``--levels`` columns (see the module docstring)."""
+    sp = res.spectrum
+    heat = HeatLevels(hks_at_scales(sp.evals, sp.evecs, (0.1, 0.02)), f)
+    share = [heat.changed_share(p, sp.mass) for p in res.p2ps]
+    matched = {d for _, d, _ in sc.matches}
+    true = [x for i, x in enumerate(share) if i in matched]
+    spurious = [x for i, x in enumerate(share) if i not in matched]
+    return (f" {max(true):.3f} |" if true else " – |") + (f" {min(spurious):.3f}-{max(spurious):.3f} |" if spurious else " – |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("words", nargs="*", help="only the rows whose name contains one of these")
@@ -190,6 +206,8 @@ def main() -> None:
     ap.add_argument("--partners", action="store_true", help="the descriptor gate on the true partners")
     ap.add_argument("--truth", action="store_true", help="the true elements' distortion, the screen's "
                     "rejections, the mirrors' per-vertex distortion and descriptor change")
+    ap.add_argument("--levels", action="store_true", help="the heat-level change of the true and the "
+                    "spurious elements found (verification.HeatLevels)")
     args = ap.parse_args()
     knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
     cfg = DetectConfig(group=GroupConfig(**knobs))
@@ -197,10 +215,11 @@ def main() -> None:
     extra = " | partners' largest ratio (cut, desc_tol)" if args.partners else ""
     extra += (" | true elements' largest distortion | coarse rejections | mirrors' per-vertex distortion "
               "median / p95 | mirrors' worst-1 % descriptor change") if args.truth else ""
+    extra += " | true elements' largest level change | spurious elements' level change" if args.levels else ""
     print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s"
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
-          + ("---:|---|---|---:|" if args.truth else ""))
+          + ("---:|---|---|---:|" if args.truth else "") + ("---:|---|" if args.levels else ""))
     rows = (random_bent_arms(args.random_arms, args.seed) if args.random_arms
             else random_shapes(args.random_shapes, args.seed) if args.random_shapes else SHAPES)
     for name, build, group, order, radius in rows:
@@ -234,6 +253,8 @@ def main() -> None:
                   if len(r) else " – |", end="")
         if args.truth:
             print(truth_columns(v, f, symmetry_maps(v0, mats), res), end="")
+        if args.levels:
+            print(level_columns(f, res, sc), end="")
         print(flush=True)
 
 

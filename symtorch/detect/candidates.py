@@ -30,7 +30,8 @@ __all__ = ["invariant_points", "persistent_points", "descriptor_ratios", "partne
 
 def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray, *, n_max: int = 40,
                      nms_radius: float = 1.0, scales=(1.0, 0.1, 0.02), per_scale: int = 40,
-                     valley: float = 1e-3, border: float = 0.25, like: float = 0.05) -> np.ndarray:
+                     valley: float = 1e-3, border: float = 0.25, like: float = 0.05,
+                     hill: float = GroupConfig.persistence) -> np.ndarray:
     """A symmetry-invariant point set: multi-scale HKS maxima and minima, thinned by farthest-point suppression.
 
     The suppression merges one feature found at several scales (or at neighbouring vertices); it
@@ -54,10 +55,10 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
         scales: HKS times as fractions of ``4 ln 10 / lambda_2``.
         per_scale: maxima considered per scale (by decreasing value).
         valley: the least drop, relative to the function's range, between two distinct extrema.
-        border, like: a point suppressed only from the outer ``border`` of its ball, by points of
-            other functions, stays where a kept point of its own function matches its HKS within
-            ``like`` of each scale's range and it tops a hill of its function (as
-            :func:`persistent_points` asks; :func:`_orbit_partner_kept`); ``border=0``: never.
+        border, like, hill: a point suppressed only from the outer ``border`` of its ball, by points
+            of other functions, stays where a kept point of its own function matches its HKS within
+            ``like`` of each scale's range (:func:`_orbit_partner_kept`) and it tops a hill of its
+            function ``hill`` of that range high (:func:`persistent_points`' test); ``border=0``: never.
 
     Returns:
         [N] vertex ids, coarse scales first.
@@ -76,13 +77,16 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
     x = np.asarray(verts_unit)
     hn = h.numpy()
     spread = hn.max(0) - hn.min(0)
+
+    def own(v: int) -> np.ndarray:  # [V] the function v is an extremum of, its maxima on top
+        return hn[:, source[v] // 2] * (-1 if source[v] % 2 else 1)
+
     keep: list[int] = []
     r = nms_radius * EPS_KLC
     held: list[int] = []  # suppressed, for the second look
     for v in cand:
         near = [k for k in keep if np.linalg.norm(x[k] - x[v]) <= r] if keep else []
-        if all(source[k] == source[v] and _separated(hn[:, source[v] // 2] * (-1 if source[v] % 2 else 1),
-                                                     adj, x, k, v, 2.5 * r, valley) for k in near):
+        if all(source[k] == source[v] and _separated(own(v), adj, x, k, v, 2.5 * r, valley) for k in near):
             keep.append(v)
         else:
             held.append(v)
@@ -93,9 +97,8 @@ def invariant_points(evals: Tensor, evecs: Tensor, faces, verts_unit: np.ndarray
             break
         near = [k for k in keep if np.linalg.norm(x[k] - x[v]) <= r]
         if _orbit_partner_kept(v, near, keep, source, x, hn, spread, r, border, like) \
-                and _top_of_hill(hn[:, source[v] // 2] * (-1 if source[v] % 2 else 1), adj,
-                                 np.linalg.norm(x - x[v], axis=1) <= 2.5 * EPS_KLC, v,
-                                 GroupConfig.persistence * float(spread[source[v] // 2])):
+                and _top_of_hill(own(v), adj, np.linalg.norm(x - x[v], axis=1) <= 2.5 * EPS_KLC, v,
+                                 hill * float(spread[source[v] // 2])):
             keep.append(v)
     return np.asarray(keep, dtype=np.int64)
 
@@ -110,10 +113,10 @@ def _orbit_partner_kept(v: int, near: list[int], keep: list[int], source: dict, 
     maxima: half its corners dropped, and with them every element that moves them). So ``v`` stays
     where every point that suppresses it lies in the outer ``border`` of the ball, none is of its own
     function, and a kept point of its own function matches its HKS at every scale within ``like``
-    of each scale's range: an orbit partner that the radius let through. (The caller also asks
-    that ``v`` tops a hill of its function, :func:`persistent_points`' test: on a remeshed
-    octagonal prism, finest-scale minima of the flat walls, which noise places, passed the rest,
-    and the extra points let through spurious sixteenth turns.)"""
+    of each scale's range: an orbit partner that the radius let through. (:func:`invariant_points`
+    also asks that ``v`` tops a hill of its function: on a remeshed octagonal prism, finest-scale
+    minima of the flat walls, which noise places, passed the rest, and the extra points let
+    through spurious sixteenth turns.)"""
     if not near or any(source[k] == source[v] or np.linalg.norm(x[k] - x[v]) < (1 - border) * r for k in near):
         return False
     return any(source[u] == source[v] and bool((np.abs(hn[u] - hn[v]) <= like * spread).all()) for u in keep)

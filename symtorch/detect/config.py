@@ -173,7 +173,7 @@ class GroupConfig:
         max_level_change: the most of the area whose heat level an isometry may change
             (``verification.HeatLevels``): the continuous test's rotation (surfaces of revolution
             change at most 2 %, prisms and antiprisms of 6-9 sides whose rotation passes as
-            near-isometric 5-35 %), and every element of the group (``group_path.keep_heat_levels``:
+            near-isometric 5-30 %), and every element of the group (``group_path.keep_heat_levels``:
             true elements, bent and remeshed, at most 2 %; an S6 solid's near-D3d half turns 5 %,
             a square antiprism's eighth turns half the area); 1: neither bound.
     """

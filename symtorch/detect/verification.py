@@ -172,7 +172,8 @@ def descriptor_gap(desc: Tensor, p2p: Tensor, mass: Tensor) -> float:
 
 class HeatLevels:
     """Which share of the area a vertex map moves to a different heat level: the test that a
-    rotation by an arbitrary angle is an isometry (``group_path.continuous_test``).
+    rotation by an arbitrary angle is an isometry (``group_path.continuous_test``) and that a
+    verified map is one (``group_path.keep_heat_levels``).
 
     An isometry keeps the heat kernel signature at every point. Of a vertex map, the image of ``x``
     is a vertex within about an edge of the true image, so ``h(x)`` must lie within the range ``h``
