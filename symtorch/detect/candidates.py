@@ -331,7 +331,7 @@ def descriptor_ratios(desc: Tensor, near: tuple[Tensor, Tensor] | None = None) -
 
 
 def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float,
-                 near: tuple[Tensor, Tensor] | None = None) -> np.ndarray:
+                 near: tuple[Tensor, Tensor] | None = None, relative_tol: float = 0.0) -> np.ndarray:
     """[n, n] bool: which points of ``P`` may be the image of which.
 
     Two points may correspond when their standardised multi-scale log-descriptors lie within
@@ -341,12 +341,23 @@ def partner_mask(desc: Tensor, dist: np.ndarray, desc_tol: float,
     distances to all of ``P`` agree (equal for orbit partners when ``P`` is invariant) to within
     ``0.5 eps`` plus 5 % of a typical distance. Every point may be its own image.
 
+    With ``relative_tol`` a pair is also allowed where its distance is at most that share of the
+    two points' own typical distances (the geometric mean of their rows' medians): a near-isometry
+    that stretches a part changes the descriptors of a distinctive point (an arm's tip) in
+    proportion to how far they are from every other point's, so that its partners, though beyond
+    ``desc_tol``, stay its nearest by far (the tips of four arms bent at R = 6: 3.3 median
+    distances apart, 8-10 from every other point).
+
     Args:
         desc: [n, D] positive descriptors of the points; dist: [n, n] geodesic distances among them;
         near: as for :func:`descriptor_ratios`.
     """
     n = len(dist)
-    allowed = descriptor_ratios(desc, near) <= desc_tol
+    ratios = descriptor_ratios(desc, near)
+    allowed = ratios <= desc_tol
+    if relative_tol > 0 and n > 2:
+        own = np.nanmedian(np.where(np.eye(n, dtype=bool), np.nan, ratios), axis=1, keepdims=True)
+        allowed |= ratios <= relative_tol * np.sqrt(own * own.T)
     prof = np.sort(dist, 1)
     pd = np.abs(prof[:, None, :] - prof[None, :, :])
     profile_agrees = np.median(pd, -1) <= 0.5 * EPS_KLC + 0.05 * np.median(prof[:, 1:], 1)[:, None]

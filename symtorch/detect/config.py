@@ -159,6 +159,15 @@ class GroupConfig:
             distorted; most often the orientation-reversing half, a chiral shape's mirrors),
             ``'drop'`` reports the subgroup as the group (the half's distortions stay in
             ``diagnostics.group.near_symmetry_coset``); ``'keep'`` reports the whole group.
+        merged_gap: where the group found leaves the spectrum's multiplicities unexplained (every
+            element of order <= 2: ``group_path.unexplained_multiplicities``), the group path runs
+            again in bands merged at this many local spacings, its maps refined as full orthogonal
+            matrices (a bend splits the eigenspaces its rotations mix, and mixes eigenfunctions
+            of different bands); the larger group is kept. 0: no second run.
+        merged_desc_tol: ``desc_tol`` of that second run: a bend moves the descriptors too (the
+            tips of four arms bent at R = 4 differ by 1.6 median distances from their partners').
+        merged_relative_tol: ... and a pair is also admitted there within this share of the two
+            points' own typical descriptor distances (``candidates.partner_mask``).
         dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
             next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
@@ -198,6 +207,7 @@ class GroupConfig:
     near_mirrors: str = "drop"
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
+    merged_relative_tol: float = 0.5
     dipoles: float = 1.0
     persistence: float = 0.05
     max_level_change: float = 0.03

@@ -138,10 +138,12 @@ class Geometry:
 
 
 def zoomout(geo: Geometry, C0: Tensor, bands: list[range], k_final: int, step: int = 4,
-            n_iter_end: int = 3) -> Tensor:
-    """Block-orthogonal ZoomOut (``refine.zoomout_symmetry``) from samples to samples."""
+            n_iter_end: int = 3, block: bool = True) -> Tensor:
+    """Block-orthogonal ZoomOut (``refine.zoomout_symmetry``) from samples to samples; with
+    ``block=False`` the full orthogonal matrix (ZoomOut's own), for the maps of a near-isometry
+    that mixes eigenfunctions of different bands (``group_path``'s merged attempt)."""
     return zoomout_symmetry(C0, geo.evecs, geo.mass, bands, k_final, step=step, samples=geo.samples,
-                            targets=geo.samples, block=True, n_iter_end=n_iter_end)
+                            targets=geo.samples, block=block, n_iter_end=n_iter_end)
 
 
 def batched_icp(C: Tensor, E_src: Tensor, E_tgt: Tensor, bands: list[range], n_iter: int = 2,
@@ -172,7 +174,8 @@ def batched_icp(C: Tensor, E_src: Tensor, E_tgt: Tensor, bands: list[range], n_i
 
 
 class CoarseElements:
-    """The elements verified in the coarse basis, identity first; :meth:`add` refines, screens and
+    """The elements verified in the coarse basis, identity first; :meth:`add` refines (block by
+    block, or with ``block=False`` as full orthogonal matrices: :func:`zoomout`), screens and
     deduplicates a candidate, :meth:`close` adds what composition implies.
 
     Two versions of one symmetry can pass the same-map test (their images within half a KLC radius
@@ -194,8 +197,8 @@ class CoarseElements:
             :func:`upsample_elements` measures them exactly.
     """
 
-    def __init__(self, geo: Geometry, bands0: list[range], k0: int, cfg: GroupConfig):
-        self.geo, self.bands0, self.k0, self.cfg = geo, bands0, k0, cfg
+    def __init__(self, geo: Geometry, bands0: list[range], k0: int, cfg: GroupConfig, block: bool = True):
+        self.geo, self.bands0, self.k0, self.cfg, self.block = geo, bands0, k0, cfg, block
         eye0 = torch.eye(k0, dtype=geo.evecs.dtype)
         self.elements = [CoarseElement(eye0, geo.score_samples.clone(), 0.0)]
         self.alternatives: dict[int, list[CoarseElement]] = {}
@@ -248,7 +251,7 @@ class CoarseElements:
             E_s = geo.evecs[geo.samples, :self.k0]
             C0 = batched_icp(C0[None], E_s, E_s, self.bands0, n_iter=10)[0]
         else:
-            C0 = zoomout(geo, C0, self.bands0, self.k0)
+            C0 = zoomout(geo, C0, self.bands0, self.k0, block=self.block)
         dst, img = geo.screen(C0)
         rejected = dst > self.cfg.max_distortion
         j = -1 if rejected else self.duplicate_of(img, C0, same_gap)
@@ -347,7 +350,8 @@ class Upsampled(NamedTuple):
 def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: GeodesicSolver,
                       bands: list[range], k0: int, kf: int, max_distortion: float,
                       alternatives: dict[int, list[CoarseElement]] | None = None,
-                      close: bool = False, near_misses: list[CoarseElement] = ()) -> Upsampled:
+                      close: bool = False, near_misses: list[CoarseElement] = (),
+                      block: bool = True) -> Upsampled:
     """Grow the coarse elements to ``kf``, map every vertex and measure each exactly.
 
     An element that upsampling made worse than ``max_distortion`` falls back to its verified coarse
@@ -361,7 +365,8 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     (:meth:`_Maps.add_distinct`); the vertex maps are then closed under composition (:meth:`_Maps.close`),
     as they are with ``close`` (the coarse closure did not end closed: its matrices may have been
     too crude to compose where the exact maps are not). Elements still above ``max_distortion``
-    are dropped, the identity never.
+    are dropped, the identity never. With ``block=False`` the refined matrices are full orthogonal
+    ones (:func:`zoomout`), not projected onto the bands.
     """
     src = geo.samples[:N_SOURCES].numpy()
     D_src = torch.as_tensor(np.asarray(solver.distances_from(src)))[:, geo.score_samples]
@@ -373,13 +378,14 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
 
     def from_map(p2p: Tensor) -> Element:
         """The element of a vertex map: its block-projected matrix in the refined basis."""
-        Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass), [b for b in bands if b.stop <= kf])
+        Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass),
+                           [b for b in bands if b.stop <= kf] if block else [range(1), range(1, kf)])
         return Element(Cf, p2p, exact_distortion(p2p))
 
     def grown(e: CoarseElement, screen: bool = False) -> Element | None:
         """``e`` in the refined basis, measured exactly; with ``screen``, None where the cheap
         screen, on the refined map, already rejects it."""
-        Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2)
+        Cf = e.fmap if kf == k0 else zoomout(geo, e.fmap, bands, kf, step=6, n_iter_end=2, block=block)
         if screen and geo.screen(Cf)[0] > max_distortion:
             return None
         p2p = geo.p2p(Cf)

@@ -222,6 +222,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     cfg = GroupConfig() if config is None else config
     lap = timer.lap if timer is not None else (lambda name: None)
     dev = torch.device("cpu") if device is None else torch.device(device)
+    # merged bands: a near-isometry split the eigenspaces, and its maps are only nearly block-diagonal
+    approximate = rel_gap > BAND_REL_GAP
     spectrum = _at_most(spectrum.to("cpu"), cfg.n_eigen)
     basis = group_basis(spectrum.evals, k, k_refine, cfg.refine, rel_gap)
     verts_unit = np.asarray(verts, dtype=np.float64) * spectrum.scale
@@ -250,7 +252,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
         return trivial("fewer than 2 invariant points")
     desc = descriptors(spectrum.evals, spectrum.evecs)  # [V, D]
     near = (desc, pts.fields <= cfg.partner_radius * EPS_KLC) if cfg.partner_radius > 0 else None
-    allowed = partner_mask(desc[pts.points], pts.dist, cfg.desc_tol, near)
+    allowed = partner_mask(desc[pts.points], pts.dist, cfg.desc_tol, near,
+                           cfg.merged_relative_tol if approximate else 0.0)
     coef = disk_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields)  # [n, R, k0]
     pairs = tuple_pairs(pts.dist, allowed, min(basis.m + 1, len(pts.points)), cfg.n_sources, cfg.delta,
                         Pinning(coef, basis.bands0), pts.persistent)
@@ -274,7 +277,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     reps, sizes = cluster_representatives(C, cfg.bandwidth, cfg.max_modes)
     diag = replace(diag, n_clusters=len(sizes), cluster_sizes=sizes[:cfg.max_modes])
     lap("cluster")
-    coarse = CoarseElements(geo, basis.bands0, basis.k0, cfg)
+    coarse = CoarseElements(geo, basis.bands0, basis.k0, cfg, block=not approximate)
     for C_rep in reps:
         coarse.add(C_rep)
     diag = replace(diag, trace=list(coarse.trace), n_verified=len(coarse.elements),
@@ -288,15 +291,18 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
                        f"{min_order} asked for")
     elements, rejected, closed = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,
                                                    basis.k_refine, cfg.max_distortion, coarse.alternatives,
-                                                   close=not coarse_closed, near_misses=coarse.near_misses)
+                                                   close=not coarse_closed, near_misses=coarse.near_misses,
+                                                   block=not approximate)
     if not closed:
         warnings.warn(f"closure of the {len(elements)} elements did not end closed", stacklevel=2)
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
     symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver,
-                                                heat, cfg.max_level_change)
+                                                heat, cfg.max_level_change, approximate)
     lap("group")
-    return SymmetryResult(symmetries, spectrum, _bands_upto(basis.bands, basis.k_refine), group=group,
+    bands = ([range(1), range(1, basis.k_refine)] if approximate
+             else _bands_upto(basis.bands, basis.k_refine))
+    return SymmetryResult(symmetries, spectrum, bands, group=group,
                           timings=dict(timer.timings) if timer is not None else {},
                           diagnostics=Diagnostics("group", group=diag))
 
@@ -497,9 +503,14 @@ COSET_RATIO = 2.0
 #: exactly symmetric triangulation (a squashed trigonal antiprism's D3d read as D6h: 0.19 against
 #: 0.0004) stands out by far more
 SUBGROUP_RATIO = 10.0
+#: ... and the orientation coset's where the elements were refined as full orthogonal matrices (the
+#: merged-band attempt of a bent shape): that refinement fits every near-isometry as well as the
+#: metric lets it, so the halves of a true bent group read 0.5-1.01 times each other, a bent chiral
+#: shape's near-mirrors 1.6-1.9 times its rotations (``group_shapes_table.py --random-arms``)
+APPROXIMATE_COSET_RATIO = 1.3
 
 
-def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
+def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = False) -> np.ndarray | None:
     """The index-2 coset of the group that is a near-symmetry riding on an exact subgroup, if any.
 
     The elements of one exact group share the mesh's discretisation, so their distortions are of
@@ -514,7 +525,11 @@ def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
     Args:
         table: [G, G] group table; distortion: [G] floats, KLC radii; reversing: optional [G] bool,
             the orientation-reversing elements (their coset is held to :data:`COSET_RATIO`, any
-            other to :data:`SUBGROUP_RATIO` and separation).
+            other to :data:`SUBGROUP_RATIO` and separation); approximate: the elements are maps of
+            a near-isometry refined as full orthogonal matrices (the merged-band attempt): only the
+            orientation-reversing coset is weighed, held to :data:`APPROXIMATE_COSET_RATIO` (a
+            bend spares the elements that respect it: four arms bent about one axis keep their two
+            mirrors and half turn exactly and their quarter turns to 0.16 KLC radii).
 
     Returns:
         [G] bool, the coset (True) whose median distortion is :func:`~.group_elements.far_above`
@@ -526,8 +541,11 @@ def near_symmetry_coset(table, distortion, reversing=None) -> np.ndarray | None:
     rev = None if reversing is None else np.asarray(reversing, dtype=bool)
     best, best_ratio = None, 0.0
     for coset, inner, mc, mh in _index2_cosets(table, d):
-        if rev is not None and (coset == rev).all():
-            stands_out = far_above(mc, mh, COSET_RATIO)
+        orientation = rev is not None and bool((coset == rev).all())
+        if approximate and not orientation:
+            continue
+        if orientation:
+            stands_out = far_above(mc, mh, APPROXIMATE_COSET_RATIO if approximate else COSET_RATIO)
         else:
             stands_out = far_above(mc, mh, SUBGROUP_RATIO) and d[coset].min() > d[inner].max()
         ratio = mc / max(mh, OUTLIER_FLOOR)
@@ -588,14 +606,16 @@ def keep_heat_levels(elements: list[Element], heat: HeatLevels, mass: Tensor, ma
 
 
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
-                          diag: GroupDiagnostics) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
-    """:func:`near_symmetry_coset`, until none is left (``near_mirrors='drop'``: each round halves
-    the group, the table restricted to the subgroup) or once (``'keep'``), with one warning."""
+                          diag: GroupDiagnostics, approximate: bool = False
+                          ) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
+    """:func:`near_symmetry_coset` (``approximate`` passed on), until none is left
+    (``near_mirrors='drop'``: each round halves the group, the table restricted to the subgroup) or
+    once (``'keep'``), with one warning."""
     table = np.asarray(table)
     dropped: list[float] = []
     said = []
     while len(elements) > 2:
-        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev)
+        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev, approximate)
         if coset is None:
             break
         dist = np.asarray([e.distortion for e in elements])
@@ -629,8 +649,8 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
                       near_mirrors: str = "drop", solver: GeodesicSolver | None = None,
-                      heat: HeatLevels | None = None, max_changed: float = GroupConfig.max_level_change
-                      ) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
+                      heat: HeatLevels | None = None, max_changed: float = GroupConfig.max_level_change,
+                      approximate: bool = False) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
     name, and the elements in the paper's order (Table 3). Where half of the group is a
     near-symmetry riding on the other half (:func:`near_symmetry_coset`: the mirrors of a chiral
@@ -640,7 +660,8 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     ``group_elements.point_map_distortions``): the vertex rounding that every element of a
     remeshed group shares would otherwise hide how far apart the two halves are. With ``heat``,
     the elements that change the heat levels of more than ``max_changed`` of the area are left out
-    before anything else (:func:`keep_heat_levels`)."""
+    before anything else (:func:`keep_heat_levels`). ``approximate``: the elements were refined as
+    full orthogonal matrices (:func:`near_symmetry_coset`'s rule for them)."""
     x_unit = geo.verts
     faces_t = torch.as_tensor(faces)
     if heat is not None:
@@ -653,7 +674,7 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
     if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
         elements = point_map_distortions(elements, geo, solver)
-    elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag)
+    elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag, approximate)
     dist = [e.distortion for e in elements]
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
     fixes = fixes_points(torch.stack([e.p2p for e in elements]), x_unit, faces_t)  # Dnh / Dnd, Cs / Ci
