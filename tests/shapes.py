@@ -421,6 +421,11 @@ GROUP_SHAPES = [
     ("antiprism4", lambda: convex_solid(antiprism(4, 0.6)), "D4d", 16, 0),
     # near-D3d: its extra half turns and mirrors change the heat levels (group_path.keep_heat_levels)
     ("s6_solid", lambda: convex_solid(POLYHEDRA["s6"]), "S6", 6, 0),
+    # added 2026-12-07 (fifth session): four bent arms keep two mirrors and the half turn exactly,
+    # the quarter turns only to 0.12-0.16 KLC radii, and their tips' descriptors apart (the merged
+    # attempt's full orthogonal maps, relative descriptor gate and orientation-only coset rule)
+    ("arms4_bent4", lambda: armed_ball(4), "C4v", 8, 4.0),
+    ("arms4_short_bent6", lambda: armed_ball(4, elev=-23.0, length=0.78, width=0.4), "C4v", 8, 6.0),
 ]
 
 

@@ -103,6 +103,25 @@ def test_descriptor_ratios_are_shares_of_the_median_pair_and_gate_the_partners()
     assert (same == 0).all()
 
 
+def test_relative_gate_admits_a_distinctive_point_s_nearest_partners():
+    import torch
+
+    g = np.random.default_rng(2)
+    base = np.exp(g.normal(size=(8, 6)))
+    # points 0-5 alike, 6 and 7 a distinctive pair (two arm tips a bend pulled apart): far from the
+    # rest, nearer each other than anything else, but beyond the global tolerance
+    far = np.exp(5.0) * base[[6]]
+    desc = torch.as_tensor(np.concatenate([base[:6], far, far * 3.0]))
+    r = descriptor_ratios(desc)
+    n = len(desc)
+    dist = np.ones((n, n)) - np.eye(n)
+    assert r[6, 7] > 0.6 and r[6, 7] < 0.5 * min(np.median(r[6, :6]), np.median(r[7, :6]))
+    plain = partner_mask(desc, dist, 0.6)
+    relative = partner_mask(desc, dist, 0.6, relative_tol=0.5)
+    assert not plain[6, 7] and relative[6, 7] and relative[7, 6]
+    assert not relative[6, :6].any() and (relative >= plain).all()
+
+
 def test_descriptor_ratios_look_around_a_point_displaced_along_its_ridge():
     import torch
 

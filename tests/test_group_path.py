@@ -318,6 +318,29 @@ def test_near_symmetry_coset_rule():
     assert near_symmetry_coset(c8v, d, rev8).tolist() == rev8.tolist()
 
 
+def test_near_symmetry_coset_of_approximate_maps():
+    """The merged attempt's full orthogonal maps (``approximate``): a bend spares the elements that
+    respect it, and only the orientation coset is weighed, at a lower ratio."""
+    from shapes import group_mats
+
+    c4v = _table(group_mats(4, vertical_mirrors=True))
+    mirrors = np.array([False] * 4 + [True] * 4)
+    # four arms bent at R = 4 (measured): quarter turns 0.16, the half turn and the two mirrors
+    # that respect the bend near-exact, the diagonal mirrors 0.16. Another coset (the quarter turns
+    # and the diagonal mirrors over the bend's C2v) stands out a hundredfold: a near-symmetry for
+    # exact maps, the truth for a bend
+    d = [0.0, 0.1603, 0.0001, 0.1603, 0.0006, 0.1593, 0.0017, 0.1607]
+    assert near_symmetry_coset(c4v, d, mirrors) is not None
+    assert near_symmetry_coset(c4v, d, mirrors, approximate=True) is None
+    # a bent chiral shape's near-mirrors, 1.6 times its rotations (seven arms at R = 4): below the
+    # exact maps' ratio, above the approximate ones'; a true bent group reads about 1.0
+    d = [0.0, 0.139, 0.139, 0.139, 0.223, 0.223, 0.223, 0.223]
+    assert near_symmetry_coset(c4v, d, mirrors) is None
+    assert near_symmetry_coset(c4v, d, mirrors, approximate=True).tolist() == mirrors.tolist()
+    d = [0.0, 0.149, 0.149, 0.149, 0.146, 0.146, 0.146, 0.146]
+    assert near_symmetry_coset(c4v, d, mirrors, approximate=True) is None
+
+
 @pytest.mark.extended
 def test_mirrors_on_chiral_arms_are_left_out_as_near_symmetries():
     # eight arms, each with a bump on one side: the exact group is C8; the mirrors move the bumps
@@ -383,3 +406,32 @@ def test_maps_that_change_the_heat_levels_are_left_out():
         warnings.simplefilter("error")
         same, d2 = keep_heat_levels(elements[::2], heat, mass, 0.03, GroupDiagnostics(k0=4, k_refine=4, m=2, bands0=[1]))
     assert len(same) == 2 and d2.level_changes is None
+
+
+@pytest.mark.extended
+def test_a_bend_s_maps_stay_full_orthogonal_matrices():
+    """Four arms bent at R = 4: the bands split the eigenspaces the quarter turns mix, and the merged
+    attempt's maps mix eigenfunctions of different bands. The result says so (one band after the
+    constant), and each matrix is the orthogonal pull-back of its vertex map, which a block
+    projection onto the spectrum's own bands would lose a large part of."""
+    from shapes import bend
+    from symtorch.maps import p2p_to_fmap
+    from symtorch.procrustes import block_project
+    from symtorch.spectrum import solved_bands
+
+    v0, f, _ = armed_ball(4)
+    res = detect_quietly(bend(v0, 4.0), f)
+    assert res.group.name == "C4v" and res.diagnostics.group.band_gap > 0.3
+    K = res.symmetries[0].fmap.shape[-1]
+    assert [(b.start, b.stop) for b in res.bands] == [(0, 1), (1, K)]
+    evecs, mass = res.spectrum.evecs[:, :K], res.spectrum.mass
+    own = [b for b in solved_bands(res.spectrum.evals) if b.stop <= K]
+    quarter = [s for s in res.symmetries if s.order == 4]
+    assert len(quarter) == 2
+    for s in quarter:
+        C = s.fmap.double()
+        assert torch.allclose(C @ C.T, torch.eye(K, dtype=C.dtype), atol=1e-6)
+        pull = p2p_to_fmap(s.p2p, evecs, mass).double()
+        kept = (C - pull).norm() / pull.norm()
+        blocked = (block_project(pull, own) - pull).norm() / pull.norm()
+        assert kept < 0.6 * blocked, (float(kept), float(blocked))

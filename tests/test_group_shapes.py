@@ -13,7 +13,8 @@ retry), the extruded star (the closure's held-back outliers), the jittered chira
 near-mirror rule off a symmetric triangulation), the regular hexagonal prism (the dipole
 constraints), the pentagonal antiprism and the centrosymmetric solid (inversions named from fixed
 points), the flat trigonal antiprism (a near-symmetric index-2 coset) and the nonagonal prism (not
-continuous: the heat levels; ``extended``); the rest is ``slow``. Eight rows are checked
+continuous: the heat levels) and the four arms bent at R = 4 (a coset that only nearly holds:
+the merged attempt's full orthogonal maps; ``extended``); the rest is ``slow``. Eight rows are checked
 ACVD-remeshed too (``REMESHED``, with pyacvd; extended).
 """
 import warnings
@@ -34,7 +35,8 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = {"star4_thin", "box"}  # the quick run; CI (extended) adds these two, the rest is slow
 EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent", "arms6_bent3", "star5_extruded",
-            "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric", "nonagon_prism"}
+            "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric", "nonagon_prism",
+            "arms4_bent4"}
 
 
 def _params():
