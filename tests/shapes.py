@@ -426,6 +426,7 @@ GROUP_SHAPES = [
     # attempt's full orthogonal maps, relative descriptor gate and orientation-only coset rule)
     ("arms4_bent4", lambda: armed_ball(4), "C4v", 8, 4.0),
     ("arms4_short_bent6", lambda: armed_ball(4, elev=-23.0, length=0.78, width=0.4), "C4v", 8, 6.0),
+    ("arms4_level_bent4", lambda: armed_ball(4, elev=-17.0), "C4v", 8, 4.0),  # merged_n_sources
 ]
 
 

@@ -44,6 +44,10 @@ def test_invalid_choices_are_refused():
         GroupConfig(near_mirrors="flag")
     with pytest.raises(ValueError, match="merged_gap must be at least 0"):
         GroupConfig(merged_gap=-0.5)
+    with pytest.raises(ValueError, match="merged_relative_tol must be at least 0"):
+        GroupConfig(merged_relative_tol=-1.0)
+    with pytest.raises(ValueError, match="merged_n_sources must be at least 1"):
+        GroupConfig(merged_n_sources=0)
     with pytest.raises(ValueError, match=r"persistence must be in \[0, 1\)"):
         GroupConfig(persistence=1.0)
     with pytest.raises(ValueError, match=r"max_level_change must be in \(0, 1\]"):

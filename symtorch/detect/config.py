@@ -168,6 +168,9 @@ class GroupConfig:
             tips of four arms bent at R = 4 differ by 1.6 median distances from their partners').
         merged_relative_tol: ... and a pair is also admitted there within this share of the two
             points' own typical descriptor distances (``candidates.partner_mask``).
+        merged_n_sources: ``n_sources`` of that second run: a bend moves some extrema off their
+            partners' images, and a source tuple holding one finds no target (four arms bent at
+            R = 4 and elevation -17 degrees: the quarter turns from none of 3 tuples, 2 of 6).
         dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
             next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
@@ -208,6 +211,7 @@ class GroupConfig:
     merged_gap: float = 1.0
     merged_desc_tol: float = 1.2
     merged_relative_tol: float = 0.5
+    merged_n_sources: int = 6
     dipoles: float = 1.0
     persistence: float = 0.05
     max_level_change: float = 0.03
@@ -225,6 +229,10 @@ class GroupConfig:
             raise ValueError(f"max_level_change must be in (0, 1], got {self.max_level_change!r}")
         if self.merged_gap < 0:
             raise ValueError(f"merged_gap must be at least 0, got {self.merged_gap!r}")
+        if self.merged_relative_tol < 0:
+            raise ValueError(f"merged_relative_tol must be at least 0, got {self.merged_relative_tol!r}")
+        if self.merged_n_sources < 1:
+            raise ValueError(f"merged_n_sources must be at least 1, got {self.merged_n_sources!r}")
 
 
 # The keywords ``detect_symmetries`` took before ``config=`` existed, and the reflection-path field

@@ -161,8 +161,10 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
 
     result, caught = attempt(BAND_REL_GAP, cfg)
     if cfg.merged_gap > 0 and unexplained_multiplicities(result, result.spectrum.evals, k):  # the cut spectrum
-        # the near-isometry that splits the bands moves the descriptors too: the gate is relaxed
-        merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol)))
+        # the near-isometry that splits the bands moves the descriptors and the extrema too: the
+        # gate is relaxed, and more source tuples are tried
+        merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol),
+                                                           n_sources=max(cfg.n_sources, cfg.merged_n_sources)))
         if merged.group.order > result.group.order:
             result, caught = merged, caught_m
     for w in caught:  # other categories (a library's deprecation notice) pass through as they were
