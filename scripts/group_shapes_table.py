@@ -31,6 +31,9 @@ standardised descriptors on the worst 1 % of the area (``verification.standardiz
 (``verification.HeatLevels``, the measure of ``group_path.keep_heat_levels``): the largest over the
 elements that match a true one, and the range over the spurious ones; with ``--group
 max_level_change=1 near_mirrors='"keep"'`` the elements that measure would leave out stay in.
+``--offband`` adds, over the true elements, the largest share (Frobenius norm) of the pull-back of
+the true map (``maps.p2p_to_fmap``) in the group path's coarse basis that lies outside its bands,
+split at the bands' 0.3 and at ``merged_gap``: what no block-diagonal matrix can carry.
 """
 from __future__ import annotations
 
@@ -53,7 +56,9 @@ from symtorch import detect_symmetries, laplacian_spectrum  # noqa: E402
 from symtorch.descriptors import descriptors  # noqa: E402
 from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
 from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
-from symtorch.detect.group_path import invariant_point_set  # noqa: E402
+from symtorch.detect.group_path import group_basis, invariant_point_set  # noqa: E402
+from symtorch.maps import p2p_to_fmap  # noqa: E402
+from symtorch.spectrum import BAND_REL_GAP  # noqa: E402
 from symtorch.detect.verification import HeatLevels, isometry_score, standardized_descriptors  # noqa: E402
 from symtorch.descriptors import hks_at_scales  # noqa: E402
 from symtorch.sampling import farthest_point_sampling  # noqa: E402
@@ -190,6 +195,22 @@ def level_columns(f, res, sc) -> str:
     return (f" {max(true):.3f} |" if true else " – |") + (f" {min(spurious):.3f}-{max(spurious):.3f} |" if spurious else " – |")
 
 
+def offband_columns(v, f, true_maps: np.ndarray, cfg: DetectConfig) -> str:
+    """The ``--offband`` columns (see the module docstring)."""
+    sp = laplacian_spectrum(v, f, k=cfg.group.n_eigen)
+    out = ""
+    for gap in (BAND_REL_GAP, cfg.group.merged_gap):
+        basis = group_basis(sp.evals, cfg.group_basis[0], cfg.group_basis[1], rel_gap=gap)
+        P = sp.evecs[:, :basis.k0].double()
+        inside = torch.zeros(basis.k0, basis.k0, dtype=torch.bool)
+        for b in basis.bands0:
+            inside[b.start:b.stop, b.start:b.stop] = True
+        shares = [float(C[~inside].norm() / C.norm()) for C in (p2p_to_fmap(torch.as_tensor(g), P, sp.mass)
+                                                                  for g in true_maps[1:])]
+        out += f" {max(shares, default=0.0):.2f} |"
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("words", nargs="*", help="only the rows whose name contains one of these")
@@ -208,6 +229,8 @@ def main() -> None:
                     "rejections, the mirrors' per-vertex distortion and descriptor change")
     ap.add_argument("--levels", action="store_true", help="the heat-level change of the true and the "
                     "spurious elements found (verification.HeatLevels)")
+    ap.add_argument("--offband", action="store_true", help="the largest share of a true element's "
+                    "coarse matrix outside the bands, split at 0.3 and at merged_gap")
     args = ap.parse_args()
     knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
     cfg = DetectConfig(group=GroupConfig(**knobs))
@@ -216,10 +239,12 @@ def main() -> None:
     extra += (" | true elements' largest distortion | coarse rejections | mirrors' per-vertex distortion "
               "median / p95 | mirrors' worst-1 % descriptor change") if args.truth else ""
     extra += " | true elements' largest level change | spurious elements' level change" if args.levels else ""
+    extra += " | true elements' off-band share, bands at 0.3 | at merged_gap" if args.offband else ""
     print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s"
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
-          + ("---:|---|---|---:|" if args.truth else "") + ("---:|---|" if args.levels else ""))
+          + ("---:|---|---|---:|" if args.truth else "") + ("---:|---|" if args.levels else "")
+          + ("---:|---:|" if args.offband else ""))
     rows = (random_bent_arms(args.random_arms, args.seed) if args.random_arms
             else random_shapes(args.random_shapes, args.seed) if args.random_shapes else SHAPES)
     for name, build, group, order, radius in rows:
@@ -255,6 +280,8 @@ def main() -> None:
             print(truth_columns(v, f, symmetry_maps(v0, mats), res), end="")
         if args.levels:
             print(level_columns(f, res, sc), end="")
+        if args.offband:
+            print(offband_columns(v, f, symmetry_maps(v0, mats), cfg), end="")
         print(flush=True)
 
 

@@ -358,6 +358,13 @@ def solved_bands(evals, rel_gap: float = BAND_REL_GAP) -> list[range]:
     return bands[:-1] if len(bands) > 1 else bands
 
 
+def full_bands(K: int) -> list[range]:
+    """The structure of a full orthogonal matrix that keeps the constant: one band after it,
+    ``[range(0, 1), range(1, K)]`` (the group path's maps of a near-isometry that mixes the
+    eigenfunctions of different bands)."""
+    return [range(1), range(1, K)]
+
+
 def band_boundary(bands: list[range], target: int) -> int:
     """The end of the band whose end is closest to ``target`` (never cutting a band)."""
     ends = np.array([b.stop for b in bands])

@@ -35,7 +35,7 @@ from ..point_cloud import (check_point_cloud, fan_spectrum, local_triangles, loc
                            oriented_normals)
 from ..procrustes import block_project
 from ..sampling import count_components
-from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, laplacian_spectrum, solved_bands
+from ..spectrum import Spectrum, band_boundary, full_bands, laplacian_spectrum, solved_bands
 from ..threads import bounded_threads
 from .config import DetectConfig
 from .result import Diagnostics, SymmetryResult
@@ -228,13 +228,12 @@ def in_basis(result: SymmetryResult, spectrum: Spectrum, K: int) -> SymmetryResu
     The group path refines its elements in a smaller basis than the reflection path (one refinement
     per element); an element whose matrix has another size gets the block-projected pull-back of its
     vertex map (``p2p_to_fmap``, ``block_project``), the identity the identity. The maps are unchanged.
-    Where the group path ran in merged bands (``diagnostics.group.band_gap`` above the bands' own:
-    a near-isometry that mixes eigenfunctions of different bands), the matrices stay full orthogonal
-    ones, one band after the constant.
+    Where the result's matrices are full orthogonal ones (``result.bands`` is
+    :func:`~symtorch.spectrum.full_bands`: the group path's merged attempt, a near-isometry that
+    mixes eigenfunctions of different bands), they stay so.
     """
-    g = result.diagnostics.group if result.diagnostics is not None else None
-    merged = g is not None and result.diagnostics.path == "group" and g.band_gap > BAND_REL_GAP
-    bands = [range(1), range(1, K)] if merged else [b for b in solved_bands(spectrum.evals) if b.stop <= K]
+    full = result.bands == full_bands(result.bands[-1].stop)
+    bands = full_bands(K) if full else [b for b in solved_bands(spectrum.evals) if b.stop <= K]
     evecs = spectrum.evecs[:, :K]
     symmetries = []
     for s in result.symmetries:

@@ -170,7 +170,7 @@ class GroupConfig:
             points' own typical descriptor distances (``candidates.partner_mask``).
         merged_n_sources: ``n_sources`` of that second run: a bend moves some extrema off their
             partners' images, and a source tuple holding one finds no target (four arms bent at
-            R = 4 and elevation -17 degrees: the quarter turns from none of 3 tuples, 2 of 6).
+            R = 4 and elevation -17 degrees: C2v with 3 tuples, C4v with 6).
         dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
             next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They

@@ -38,7 +38,7 @@ from ..maps import TwoLevelSearch, p2p_to_fmap
 from ..procrustes import block_procrustes, block_project
 from ..refine import zoomout_symmetry
 from ..sampling import farthest_point_sampling
-from ..spectrum import Spectrum
+from ..spectrum import Spectrum, full_bands
 from ..units import EPS_KLC
 from ..vertex_to_point import vertex_faces, vertex_to_point
 from .config import GroupConfig
@@ -379,7 +379,7 @@ def upsample_elements(coarse: list[CoarseElement], geo: Geometry, solver: Geodes
     def from_map(p2p: Tensor) -> Element:
         """The element of a vertex map: its block-projected matrix in the refined basis."""
         Cf = block_project(p2p_to_fmap(p2p, geo.evecs[:, :kf], geo.mass),
-                           [b for b in bands if b.stop <= kf] if block else [range(1), range(1, kf)])
+                           [b for b in bands if b.stop <= kf] if block else full_bands(kf))
         return Element(Cf, p2p, exact_distortion(p2p))
 
     def grown(e: CoarseElement, screen: bool = False) -> Element | None:

@@ -78,7 +78,7 @@ from ..groups.algebra import _subtable, _z2_homs, cayley_table, identity_index
 from ..groups.naming import GroupInfo, fixes_points, group_info, kind_of, orientation_score
 from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
 from ..procrustes import block_procrustes
-from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, solved_bands
+from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, full_bands, solved_bands
 from ..units import EPS_KLC, mean_edge
 from .candidates import Pinning, invariant_points, partner_mask, persistent_points, tuple_pairs
 from .config import GroupConfig
@@ -153,18 +153,20 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
     """
     cfg = GroupConfig() if config is None else config
 
-    def attempt(rel_gap: float, run_cfg: GroupConfig) -> tuple[SymmetryResult, list]:
+    def attempt(rel_gap: float, run_cfg: GroupConfig, approximate: bool = False) -> tuple[SymmetryResult, list]:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=run_cfg, device=device,
-                                 solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap), caught
+                                 solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap,
+                                 approximate=approximate), caught
 
     result, caught = attempt(BAND_REL_GAP, cfg)
     if cfg.merged_gap > 0 and unexplained_multiplicities(result, result.spectrum.evals, k):  # the cut spectrum
         # the near-isometry that splits the bands moves the descriptors and the extrema too: the
         # gate is relaxed, and more source tuples are tried
         merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol),
-                                                           n_sources=max(cfg.n_sources, cfg.merged_n_sources)))
+                                                           n_sources=max(cfg.n_sources, cfg.merged_n_sources)),
+                                   approximate=True)
         if merged.group.order > result.group.order:
             result, caught = merged, caught_m
     for w in caught:  # other categories (a library's deprecation notice) pass through as they were
@@ -219,13 +221,15 @@ def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 2
 
 def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, config: GroupConfig | None,
                   device, solver: GeodesicSolver | None, min_order: int, timer,
-                  rel_gap: float = BAND_REL_GAP) -> SymmetryResult:
-    """:func:`detect_group` without its warning summary, in bands split at ``rel_gap``."""
+                  rel_gap: float = BAND_REL_GAP, approximate: bool = False) -> SymmetryResult:
+    """:func:`detect_group` without its warning summary, in bands split at ``rel_gap``; with
+    ``approximate`` (the merged attempt: a near-isometry split the eigenspaces, and its maps are only
+    nearly block-diagonal) the maps are refined as full orthogonal matrices, the descriptor gate is
+    also relative (``merged_relative_tol``) and only the orientation coset is weighed as a
+    near-symmetry."""
     cfg = GroupConfig() if config is None else config
     lap = timer.lap if timer is not None else (lambda name: None)
     dev = torch.device("cpu") if device is None else torch.device(device)
-    # merged bands: a near-isometry split the eigenspaces, and its maps are only nearly block-diagonal
-    approximate = rel_gap > BAND_REL_GAP
     spectrum = _at_most(spectrum.to("cpu"), cfg.n_eigen)
     basis = group_basis(spectrum.evals, k, k_refine, cfg.refine, rel_gap)
     verts_unit = np.asarray(verts, dtype=np.float64) * spectrum.scale
@@ -302,8 +306,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver,
                                                 heat, cfg.max_level_change, approximate)
     lap("group")
-    bands = ([range(1), range(1, basis.k_refine)] if approximate
-             else _bands_upto(basis.bands, basis.k_refine))
+    bands = full_bands(basis.k_refine) if approximate else _bands_upto(basis.bands, basis.k_refine)
     return SymmetryResult(symmetries, spectrum, bands, group=group,
                           timings=dict(timer.timings) if timer is not None else {},
                           diagnostics=Diagnostics("group", group=diag))
