@@ -34,6 +34,11 @@ max_level_change=1 near_mirrors='"keep"'`` the elements that measure would leave
 ``--offband`` adds, over the true elements, the largest share (Frobenius norm) of the pull-back of
 the true map (``maps.p2p_to_fmap``) in the group path's coarse basis that lies outside its bands,
 split at the bands' 0.3 and at ``merged_gap``: what no block-diagonal matrix can carry.
+``--cosets`` adds, where the result came from the merged-band attempt, the largest ratio of an
+index-2 coset other than the orientation one to its subgroup's bent elements, and whether it lies
+apart from the subgroup (``group_path.bent_coset_ratios``: what ``near_symmetry_coset`` drops above
+``APPROXIMATE_SUBGROUP_RATIO``), and the distortions of a coset dropped; with ``--group
+near_mirrors='"keep"'`` a dropped coset stays and reads in the ratio.
 """
 from __future__ import annotations
 
@@ -56,7 +61,8 @@ from symtorch import detect_symmetries, laplacian_spectrum  # noqa: E402
 from symtorch.descriptors import descriptors  # noqa: E402
 from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
 from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
-from symtorch.detect.group_path import group_basis, invariant_point_set  # noqa: E402
+from symtorch.detect.group_elements import EXACT_ENOUGH  # noqa: E402
+from symtorch.detect.group_path import bent_coset_ratios, group_basis, invariant_point_set  # noqa: E402
 from symtorch.maps import p2p_to_fmap  # noqa: E402
 from symtorch.spectrum import BAND_REL_GAP  # noqa: E402
 from symtorch.detect.verification import HeatLevels, isometry_score, standardized_descriptors  # noqa: E402
@@ -211,6 +217,20 @@ def offband_columns(v, f, true_maps: np.ndarray, cfg: DetectConfig) -> str:
     return out
 
 
+def coset_columns(res, cfg: GroupConfig) -> str:
+    """``--cosets``: where the merged attempt gave the result, its largest other-coset ratio
+    (``group_path.bent_coset_ratios``, apart or not) and the median of a coset it dropped."""
+    g = res.diagnostics.group
+    if g is None or g.distortion is None or g.band_gap != cfg.merged_gap:
+        return " – | – |"
+    ratios = bent_coset_ratios(res.group.table, g.distortion, res.group.reversing,
+                               EXACT_ENOUGH * cfg.max_distortion)
+    r = max(ratios, default=None)
+    dropped = g.near_symmetry_coset
+    return (f" {f'{r[0]:.2f}' + (' apart' if r[1] else '') if r else '–'} |"
+            f" {f'{len(dropped)} at {statistics.median(dropped):.3f}' if dropped else '–'} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("words", nargs="*", help="only the rows whose name contains one of these")
@@ -231,6 +251,8 @@ def main() -> None:
                     "spurious elements found (verification.HeatLevels)")
     ap.add_argument("--offband", action="store_true", help="the largest share of a true element's "
                     "coarse matrix outside the bands, split at 0.3 and at merged_gap")
+    ap.add_argument("--cosets", action="store_true", help="the merged attempt's cosets other than the "
+                    "orientation one, against their subgroups' bent elements")
     args = ap.parse_args()
     knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
     cfg = DetectConfig(group=GroupConfig(**knobs))
@@ -240,11 +262,12 @@ def main() -> None:
               "median / p95 | mirrors' worst-1 % descriptor change") if args.truth else ""
     extra += " | true elements' largest level change | spurious elements' level change" if args.levels else ""
     extra += " | true elements' off-band share, bands at 0.3 | at merged_gap" if args.offband else ""
+    extra += " | other cosets' largest ratio to bent subgroup (apart) | dropped coset's median" if args.cosets else ""
     print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s"
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
           + ("---:|---|---|---:|" if args.truth else "") + ("---:|---|" if args.levels else "")
-          + ("---:|---:|" if args.offband else ""))
+          + ("---:|---:|" if args.offband else "") + ("---:|---:|" if args.cosets else ""))
     rows = (random_bent_arms(args.random_arms, args.seed) if args.random_arms
             else random_shapes(args.random_shapes, args.seed) if args.random_shapes else SHAPES)
     for name, build, group, order, radius in rows:
@@ -282,6 +305,8 @@ def main() -> None:
             print(level_columns(f, res, sc), end="")
         if args.offband:
             print(offband_columns(v, f, symmetry_maps(v0, mats), cfg), end="")
+        if args.cosets:
+            print(coset_columns(res, cfg.group), end="")
         print(flush=True)
 
 

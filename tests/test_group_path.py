@@ -11,7 +11,7 @@ import torch
 
 from symtorch import detect_symmetries, laplacian_spectrum, shapes
 from symtorch.detect.config import DetectConfig, GroupConfig
-from symtorch.detect.group_path import (coset_spread, has_multiplicities, near_symmetry_coset,
+from symtorch.detect.group_path import (bend_remnant, coset_spread, has_multiplicities, near_symmetry_coset,
                                         unexplained_multiplicities)
 from symtorch.eval import klc_threshold
 from symtorch.eval.groups import dihedral_orbit_errors, element_rates
@@ -56,6 +56,20 @@ def test_unexplained_multiplicities():
                                 + [15.0 + 1.3 * i for i in range(45)], dtype=torch.float64)
     assert not has_multiplicities(coarse_pairs)
     assert unexplained_multiplicities(found([1, 2, 2, 2]), coarse_pairs)
+
+
+def test_bend_remnant():
+    def found(orders, continuous=False):
+        return SimpleNamespace(continuous=continuous, group=SimpleNamespace(
+            orders=torch.tensor(orders), order=len(orders)))
+
+    # what a bend leaves exact of C_2n v or D_nh: several commuting involutions
+    assert bend_remnant(found([1, 2, 2, 2]))
+    assert bend_remnant(found([1, 2, 2, 2, 2, 2, 2, 2]))
+    # one mirror, a rotation of order >= 3, a continuous symmetry: not that
+    assert not bend_remnant(found([1, 2]))
+    assert not bend_remnant(found([1, 4, 2, 4]))
+    assert not bend_remnant(found([1], continuous=True))
 
 
 # --------------------------------------------------------------------------- shapes with known groups
@@ -339,6 +353,33 @@ def test_near_symmetry_coset_of_approximate_maps():
     assert near_symmetry_coset(c4v, d, mirrors, approximate=True).tolist() == mirrors.tolist()
     d = [0.0, 0.149, 0.149, 0.149, 0.146, 0.146, 0.146, 0.146]
     assert near_symmetry_coset(c4v, d, mirrors, approximate=True) is None
+
+
+def test_near_symmetry_coset_of_approximate_maps_beyond_the_orientation_coset():
+    """A bent shape's near-symmetric half that is not the orientation coset (the horizontal mirror
+    of arms that droop a little, on a D4h table: measured 2.0 times the bent elements of C4v, apart
+    from them) is dropped; a true bent group's other half is not, nor a half whose subgroup the
+    bend spares throughout (nothing to compare with)."""
+    from shapes import group_mats
+
+    mats = group_mats(4, vertical_mirrors=True, horizontal_mirror=True)  # C4v, then sigma_h times it
+    d4h = _table(mats)
+    rev = np.array([np.linalg.det(m) < 0 for m in mats])
+    horizontal = np.array([False] * 8 + [True] * 8)
+    c4v = [0.0, 0.10, 0.003, 0.11, 0.002, 0.12, 0.004, 0.09]  # the bend spares a C2v
+    d = c4v + [0.22, 0.24, 0.23, 0.245, 0.22, 0.23, 0.24, 0.235]
+    assert near_symmetry_coset(d4h, d, rev) is None  # exact maps: below SUBGROUP_RATIO
+    assert near_symmetry_coset(d4h, d, rev, approximate=True).tolist() == horizontal.tolist()
+    # the same distortions, the coset read against all of C4v's: its exact half would pull the
+    # median down; against the bent half alone a true bent group's other half reads about 1
+    d = c4v + [0.10, 0.12, 0.11, 0.09, 0.10, 0.12, 0.11, 0.10]
+    assert near_symmetry_coset(d4h, d, rev, approximate=True) is None
+    # not apart from the subgroup (one coset element below its most distorted one): kept
+    d = c4v + [0.10, 0.24, 0.23, 0.245, 0.22, 0.23, 0.24, 0.235]
+    assert near_symmetry_coset(d4h, d, rev, approximate=True) is None
+    # a subgroup exact throughout: nothing to compare with
+    d = [0.0, 0.001, 0.003, 0.002, 0.002, 0.001, 0.004, 0.003] + [0.22] * 8
+    assert near_symmetry_coset(d4h, d, rev, approximate=True) is None
 
 
 @pytest.mark.extended

@@ -83,7 +83,7 @@ from ..units import EPS_KLC, mean_edge
 from .candidates import Pinning, invariant_points, partner_mask, persistent_points, tuple_pairs
 from .config import GroupConfig
 from .constraints import descriptor_coefficients, dipole_coefficients, disk_coefficients
-from .group_elements import (OUTLIER_FLOOR, CoarseElements, Element, Geometry, batched_icp, far_above,
+from .group_elements import (EXACT_ENOUGH, OUTLIER_FLOOR, CoarseElements, Element, Geometry, batched_icp, far_above,
                              point_map_distortions, upsample_elements, zoomout)
 from .result import Diagnostics, GroupDiagnostics, Symmetry, SymmetryResult
 from .verification import HeatLevels
@@ -92,7 +92,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["detect_group", "GroupBasis", "PointSet", "group_basis", "invariant_point_set",
            "continuous_test", "candidate_fmaps", "batched_icp", "cluster_representatives", "keep_heat_levels",
-           "group_of_elements", "near_symmetry_coset", "has_multiplicities", "unexplained_multiplicities"]
+           "group_of_elements", "near_symmetry_coset", "has_multiplicities", "unexplained_multiplicities",
+           "bend_remnant", "bent_coset_ratios"]
 
 
 class GroupBasis(NamedTuple):
@@ -153,20 +154,26 @@ def detect_group(verts, faces, spectrum: Spectrum, *, k: int = 20, k_refine: int
     """
     cfg = GroupConfig() if config is None else config
 
-    def attempt(rel_gap: float, run_cfg: GroupConfig, approximate: bool = False) -> tuple[SymmetryResult, list]:
+    def attempt(rel_gap: float, run_cfg: GroupConfig, approximate: bool = False,
+                at_least: int = min_order) -> tuple[SymmetryResult, list]:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             return _detect_group(verts, faces, spectrum, k=k, k_refine=k_refine, config=run_cfg, device=device,
-                                 solver=solver, min_order=min_order, timer=timer, rel_gap=rel_gap,
+                                 solver=solver, min_order=at_least, timer=timer, rel_gap=rel_gap,
                                  approximate=approximate), caught
 
     result, caught = attempt(BAND_REL_GAP, cfg)
-    if cfg.merged_gap > 0 and unexplained_multiplicities(result, result.spectrum.evals, k):  # the cut spectrum
-        # the near-isometry that splits the bands moves the descriptors and the extrema too: the
-        # gate is relaxed, and more source tuples are tried
-        merged, caught_m = attempt(cfg.merged_gap, replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol),
-                                                           n_sources=max(cfg.n_sources, cfg.merged_n_sources)),
-                                   approximate=True)
+    unexplained = unexplained_multiplicities(result, result.spectrum.evals, k)  # the cut spectrum
+    if cfg.merged_gap > 0 and (unexplained or bend_remnant(result)):
+        # the near-isometry that splits the bands moves the descriptors and the extrema too: where
+        # the pairs it split are many, the gate is relaxed and more source tuples are tried (where
+        # only bend_remnant asks, the first attempt's gates: relaxed, they cost a box's D2h 3-8
+        # times as much); only a larger group replaces the first one, so its coarse stage stops
+        # where it verifies no more elements than that
+        run_cfg = (replace(cfg, desc_tol=max(cfg.desc_tol, cfg.merged_desc_tol),
+                           n_sources=max(cfg.n_sources, cfg.merged_n_sources)) if unexplained else cfg)
+        merged, caught_m = attempt(cfg.merged_gap, run_cfg, approximate=True,
+                                   at_least=max(min_order, result.group.order + 1))
         if merged.group.order > result.group.order:
             result, caught = merged, caught_m
     for w in caught:  # other categories (a library's deprecation notice) pass through as they were
@@ -217,6 +224,16 @@ def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 2
     # at either scale: the group path has run already, and a bend that splits the pairs of the
     # larger basis still leaves the coarse one dominated by them (six arms bent at R = 4)
     return max(multiplicity_shares(evals, k)) >= MULTIPLICITY_SHARE
+
+
+def bend_remnant(result: SymmetryResult) -> bool:
+    """Whether the group found is what a bend about one axis leaves exact of a larger group: several
+    commuting involutions (order >= 4, every element of order <= 2: C2v, D2h). Six arms bent at
+    R = 6 keep their C2v exactly and split their eigenvalue pairs by more than the bands' 0.3 of
+    a spacing, down to a 2-D share of 0.32 at both scales, below what
+    :func:`unexplained_multiplicities` asks; the merged-band attempt finds their C6v. An exact
+    C2v (a table, a box's D2h) costs one more attempt, whose elements are verified as any."""
+    return not result.continuous and result.group.order >= 4 and int(result.group.orders.max()) <= 2
 
 
 def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, config: GroupConfig | None,
@@ -513,9 +530,17 @@ SUBGROUP_RATIO = 10.0
 #: metric lets it, so the halves of a true bent group read 0.5-1.01 times each other, a bent chiral
 #: shape's near-mirrors 1.6-1.9 times its rotations (``group_shapes_table.py --random-arms``)
 APPROXIMATE_COSET_RATIO = 1.3
+#: ... and any other coset of those maps, against its subgroup's inexact elements (above
+#: :data:`~.group_elements.EXACT_ENOUGH` of ``max_distortion``: what the bend spares is left out),
+#: with every element of the coset above every element of the subgroup: the other halves of true
+#: bent groups read 0.48-1.01 times their subgroups' bent elements and never apart from them, the
+#: horizontal mirrors of seven arms drooping 6 degrees and bent at R = 5 (a spurious D7h for C7v)
+#: 2.04 times, apart (``group_shapes_table.py --cosets``)
+APPROXIMATE_SUBGROUP_RATIO = 1.5
 
 
-def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = False) -> np.ndarray | None:
+def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = False,
+                        exact: float = EXACT_ENOUGH * GroupConfig.max_distortion) -> np.ndarray | None:
     """The index-2 coset of the group that is a near-symmetry riding on an exact subgroup, if any.
 
     The elements of one exact group share the mesh's discretisation, so their distortions are of
@@ -531,10 +556,12 @@ def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = F
         table: [G, G] group table; distortion: [G] floats, KLC radii; reversing: optional [G] bool,
             the orientation-reversing elements (their coset is held to :data:`COSET_RATIO`, any
             other to :data:`SUBGROUP_RATIO` and separation); approximate: the elements are maps of
-            a near-isometry refined as full orthogonal matrices (the merged-band attempt): only the
-            orientation-reversing coset is weighed, held to :data:`APPROXIMATE_COSET_RATIO` (a
-            bend spares the elements that respect it: four arms bent about one axis keep their two
-            mirrors and half turn exactly and their quarter turns to 0.16 KLC radii).
+            a near-isometry refined as full orthogonal matrices (the merged-band attempt): the
+            orientation-reversing coset is held to :data:`APPROXIMATE_COSET_RATIO`, any other to
+            :data:`APPROXIMATE_SUBGROUP_RATIO` of its subgroup's elements above ``exact`` and to
+            separation (a bend spares the elements that respect it: four arms bent about one axis
+            keep their two mirrors and half turn exactly and their quarter turns to 0.16 KLC
+            radii; a subgroup that is exact throughout gives nothing to compare with).
 
     Returns:
         [G] bool, the coset (True) whose median distortion is :func:`~.group_elements.far_above`
@@ -547,16 +574,45 @@ def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = F
     best, best_ratio = None, 0.0
     for coset, inner, mc, mh in _index2_cosets(table, d):
         orientation = rev is not None and bool((coset == rev).all())
-        if approximate and not orientation:
-            continue
         if orientation:
             stands_out = far_above(mc, mh, APPROXIMATE_COSET_RATIO if approximate else COSET_RATIO)
+        elif approximate:
+            mh = _bent_median(d, inner, exact)
+            if mh is None:
+                continue
+            stands_out = far_above(mc, mh, APPROXIMATE_SUBGROUP_RATIO) and _apart(d, coset, inner)
         else:
-            stands_out = far_above(mc, mh, SUBGROUP_RATIO) and d[coset].min() > d[inner].max()
+            stands_out = far_above(mc, mh, SUBGROUP_RATIO) and _apart(d, coset, inner)
         ratio = mc / max(mh, OUTLIER_FLOOR)
         if stands_out and ratio > best_ratio:
             best, best_ratio = coset, ratio
     return best
+
+
+def _apart(d: np.ndarray, coset: np.ndarray, inner: np.ndarray) -> bool:
+    """Every element of the coset more distorted than every element of its subgroup."""
+    return bool(d[coset].min() > d[inner].max())
+
+
+def bent_coset_ratios(table, distortion, reversing, exact: float = EXACT_ENOUGH * GroupConfig.max_distortion
+                      ) -> list[tuple[float, bool]]:
+    """Per index-2 coset other than the orientation one, whose subgroup has elements above
+    ``exact``: (its median distortion over theirs, whether it lies apart from the subgroup), what
+    :func:`near_symmetry_coset` weighs for approximate maps (``group_shapes_table.py --cosets``)."""
+    d = np.asarray(distortion, dtype=np.float64)
+    rev = np.asarray(reversing, dtype=bool)
+    out = []
+    for coset, inner, mc, _ in _index2_cosets(table, d):
+        mh = _bent_median(d, inner, exact)
+        if not (coset == rev).all() and mh is not None:
+            out.append((mc / max(mh, OUTLIER_FLOOR), _apart(d, coset, inner)))
+    return out
+
+
+def _bent_median(d: np.ndarray, inner: np.ndarray, exact: float) -> float | None:
+    """The median distortion of the subgroup's elements above ``exact`` (None: none is)."""
+    bent = inner[d[inner] > exact]
+    return float(np.median(d[bent])) if len(bent) else None
 
 
 def _index2_cosets(table, d: np.ndarray):
