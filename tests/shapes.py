@@ -427,6 +427,16 @@ GROUP_SHAPES = [
     ("arms4_bent4", lambda: armed_ball(4), "C4v", 8, 4.0),
     ("arms4_short_bent6", lambda: armed_ball(4, elev=-23.0, length=0.78, width=0.4), "C4v", 8, 6.0),
     ("arms4_level_bent4", lambda: armed_ball(4, elev=-17.0), "C4v", 8, 4.0),  # merged_n_sources
+    # added 2026-12-07 (sixth session), from held-out random draws: six arms whose bend splits their
+    # pairs below the share the merged attempt asked for (group_path.bend_remnant); seven arms that
+    # droop 6 degrees, whose horizontal mirror the merged attempt found as a near-symmetry (D7h: the
+    # approximate rule for other cosets); a chiral C4 whose pairs hold at one scale only, where a
+    # near-mirror passed the reflection path (the second opinion of detect.auto)
+    ("arms6_short_bent6", lambda: armed_ball(6, elev=-13.0, length=0.77), "C6v", 12, 6.0),
+    ("arms7_level_bent5", lambda: armed_ball(7, elev=-6.0, length=0.87, width=0.32), "C7v", 14, 5.0),
+    ("chiral4_bent5", lambda: armed_ball(4, chiral=True, elev=-20.0, length=0.8, width=0.33), "C4", 4, 5.0),
+    # ... and one whose pairs hold at neither scale: the second opinion stops at its coarse half turn
+    ("chiral4_bent6", lambda: armed_ball(4, chiral=True, elev=-17.87, length=1.19, width=0.396), "C4", 4, 6.0),
 ]
 
 

@@ -59,17 +59,22 @@ def test_unexplained_multiplicities():
 
 
 def test_bend_remnant():
-    def found(orders, continuous=False):
+    def found(orders, reversing, continuous=False, coarse_half_turn=None):
         return SimpleNamespace(continuous=continuous, group=SimpleNamespace(
-            orders=torch.tensor(orders), order=len(orders)))
+            orders=torch.tensor(orders), reversing=torch.tensor(reversing)),
+            diagnostics=SimpleNamespace(group=SimpleNamespace(coarse_half_turn=coarse_half_turn)))
 
-    # what a bend leaves exact of C_2n v or D_nh: several commuting involutions
-    assert bend_remnant(found([1, 2, 2, 2]))
-    assert bend_remnant(found([1, 2, 2, 2, 2, 2, 2, 2]))
-    # one mirror, a rotation of order >= 3, a continuous symmetry: not that
-    assert not bend_remnant(found([1, 2]))
-    assert not bend_remnant(found([1, 4, 2, 4]))
-    assert not bend_remnant(found([1], continuous=True))
+    # what a bend leaves exact of a chiral C_2n, of C_2n v or of D_nh: a half turn among involutions
+    assert bend_remnant(found([1, 2], [False, False]))
+    assert bend_remnant(found([1, 2, 2, 2], [False, False, True, True]))
+    assert bend_remnant(found([1, 2, 2, 2, 2, 2, 2, 2], [False, False, False, False, True, True, True, True]))
+    # a lone mirror (a human's), a rotation of order >= 3, a continuous symmetry: not that
+    assert not bend_remnant(found([1, 2], [False, True]))
+    assert not bend_remnant(found([1, 4, 2, 4], [False] * 4))
+    assert not bend_remnant(found([1], [False], continuous=True))
+    # a second opinion that stopped at the coarse stage with a half turn (asked for three elements)
+    assert bend_remnant(found([1], [False], coarse_half_turn=True))
+    assert not bend_remnant(found([1], [False], coarse_half_turn=False))
 
 
 # --------------------------------------------------------------------------- shapes with known groups

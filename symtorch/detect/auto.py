@@ -13,8 +13,10 @@ whole finite group, or a continuous symmetry. :func:`detect_symmetries` chooses:
    reflection (a lone half turn), or its reflection came from the functional-map candidate alone
    (a box whose heat-kernel extrema are too few to pair), or it found at
    least three equally consistent involutions of its extrema (a C2v or D2h shape: all its
-   irreducible representations are 1-D, so its spectrum is simple), the group path runs too,
-   asked for a group larger than the reflection path's.
+   irreducible representations are 1-D, so its spectrum is simple), or the spectrum is dominated
+   by pairs at one of the two scales only (a bend splits a chiral C4's pairs of the larger basis,
+   and a near-mirror passes the reflection path), the group path runs too, asked for a group
+   larger than the reflection path's.
 5. **keep** the larger verified group (the reflection path's on a tie), with every element's
    matrix expressed in the ``k_refine`` basis whichever path found it.
 """
@@ -134,7 +136,8 @@ def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectr
 def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, solver: GeodesicSolver,
                 timer: _Timer, batch_device: torch.device) -> SymmetryResult:
     """Steps 2-5 of the module docstring: the kept result, with every path's diagnostics."""
-    from .group_path import detect_group, has_multiplicities  # imported here: tests patch them
+    from .group_path import (MULTIPLICITY_SHARE, detect_group, has_multiplicities,  # imported here: tests
+                             multiplicity_shares)  # patch them
     from .reflection import detect_reflection
 
     k_group, k_refine_group = cfg.group_basis
@@ -151,10 +154,13 @@ def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, 
     reflected = detect_reflection(verts, faces, spectrum, k=cfg.k, k_refine=cfg.k_refine,
                                   config=cfg.reflection, solver=solver, timer=timer)
     # no reflection, or one from the functional-map candidate alone (the extrema paired nothing:
-    # too few of them, as on a box), or several near-equal involutions: the group path too
+    # too few of them, as on a box), or several near-equal involutions, or pairs at one scale:
+    # the group path too
     if mode == "auto" and grouped is None and (len(reflected.symmetries) == 1
                                                or not reflected.diagnostics.reflection.n_candidates
-                                               or _several_involutions(reflected, cfg.group_tol)):
+                                               or _several_involutions(reflected, cfg.group_tol)
+                                               or max(multiplicity_shares(spectrum.evals, k_group))
+                                               >= MULTIPLICITY_SHARE):
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")
             # only a group larger than the reflection path's can replace its result

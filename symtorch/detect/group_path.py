@@ -227,13 +227,22 @@ def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 2
 
 
 def bend_remnant(result: SymmetryResult) -> bool:
-    """Whether the group found is what a bend about one axis leaves exact of a larger group: several
-    commuting involutions (order >= 4, every element of order <= 2: C2v, D2h). Six arms bent at
-    R = 6 keep their C2v exactly and split their eigenvalue pairs by more than the bands' 0.3 of
-    a spacing, down to a 2-D share of 0.32 at both scales, below what
-    :func:`unexplained_multiplicities` asks; the merged-band attempt finds their C6v. An exact
-    C2v (a table, a box's D2h) costs one more attempt, whose elements are verified as any."""
-    return not result.continuous and result.group.order >= 4 and int(result.group.orders.max()) <= 2
+    """Whether the group found is what a bend about one axis leaves exact of a larger group: a half
+    turn, every element of order <= 2 (C2 of a chiral C_2n, C2v of C_2n v, D2h of D_nh). Six arms
+    bent at R = 6 keep their C2v exactly, a chiral four their half turn, and both split their
+    eigenvalue pairs by more than the bands' 0.3 of a spacing, down to a 2-D share of 0.32-0.37
+    at both scales, below what :func:`unexplained_multiplicities` asks; the merged-band attempt
+    finds their C6v and C4. An exact C2v (a table, a box's D2h) costs one more attempt, whose
+    elements are verified as any; a lone mirror (Cs, the humans') does not ask for it. Where a
+    second opinion asked for more than two elements, its first attempt stops at the coarse stage:
+    ``diagnostics.group.coarse_half_turn`` then says whether its two elements were a half turn."""
+    g = result.group
+    if result.continuous or int(g.orders.max()) > 2:
+        return False
+    # a second opinion asked for more than two elements stops at the coarse stage: its half turn
+    # is in the diagnostics
+    return (bool(((g.orders == 2) & ~torch.as_tensor(g.reversing, dtype=torch.bool)).any())
+            or bool(getattr(result.diagnostics.group, "coarse_half_turn", False)))
 
 
 def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, config: GroupConfig | None,
@@ -310,6 +319,9 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     diag = replace(diag, n_after_closure=len(coarse.elements))
     lap("closure")
     if len(coarse.elements) < min_order:  # the largest subgroup of these has at most that many
+        if len(coarse.elements) == 2:  # closed: the identity and an involution, a mirror or a half turn
+            keeps = orientation_score(geo.p2p(coarse.elements[1].fmap), geo.verts, torch.as_tensor(faces)) > 0
+            diag = replace(diag, coarse_half_turn=bool(keeps))
         return trivial(f"{len(coarse.elements)} elements verified in the coarse basis, fewer than the "
                        f"{min_order} asked for")
     elements, rejected, closed = upsample_elements(coarse.elements, geo, solver, basis.bands, basis.k0,

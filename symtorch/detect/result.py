@@ -156,7 +156,10 @@ class GroupDiagnostics:
             on near-exact rotations (:func:`~symtorch.detect.group_path.near_symmetry_coset`);
             level_changes: the share of the area whose heat level each element left out by
             :func:`~symtorch.detect.group_path.keep_heat_levels` changes.
-        name, order: the group found; reason: why the trivial group was returned early.
+        name, order: the group found; reason: why the trivial group was returned early;
+            coarse_half_turn: where that was fewer coarse elements than asked for, whether they
+            are the identity and one orientation-keeping map (a half turn: what a bend leaves of a
+            chiral C_2n, :func:`~symtorch.detect.group_path.bend_remnant`).
     """
 
     k0: int
@@ -187,6 +190,7 @@ class GroupDiagnostics:
     name: str = "C1"
     order: int = 1
     reason: str | None = None
+    coarse_half_turn: bool | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out = {"path": "group"}
