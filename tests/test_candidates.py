@@ -169,3 +169,18 @@ def test_top_of_hill_tells_a_peak_from_a_ripple():
     assert _top_of_hill(f, adj, ball, peak, 0.1)
     assert not _top_of_hill(f, adj, ball, ripple, 0.1) and _top_of_hill(f, adj, ball, ripple, 1e-4)
     assert not _top_of_hill(f, adj, ball, idx[20, 26], 0.05)
+
+
+def test_candidate_tuples_may_leave_a_source_point_without_target():
+    """``max_missing``: a source point no point of the set can be the image of (a bend moved its
+    partner's extremum away) leaves -1 in its place instead of emptying every tuple through it."""
+    x = np.array([0.0, 1.0, 2.5, 4.5])
+    dist = np.abs(x[:, None] - x[None])
+    allowed = np.ones((4, 4), dtype=bool)
+    allowed[1] = False  # point 1 has no partner
+    q, _ = candidate_tuples([0, 1, 2], dist, allowed, delta=0.9, slack=0.0)
+    assert len(q) == 0
+    q, _ = candidate_tuples([0, 1, 2], dist, allowed, delta=0.9, slack=0.0, max_missing=1)
+    assert len(q) and (q[:, 1] == -1).all()
+    assert [0, -1, 2] in q.tolist() and [2, -1, 0] in q.tolist()  # the identity and the flip keep d(0, 2)
+    assert all(abs(dist[a, b] - dist[0, 2]) <= 0.1 * max(dist[a, b], dist[0, 2]) for a, _, b in q.tolist())

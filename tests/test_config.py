@@ -48,6 +48,8 @@ def test_invalid_choices_are_refused():
         GroupConfig(merged_relative_tol=-1.0)
     with pytest.raises(ValueError, match="merged_n_sources must be at least 1"):
         GroupConfig(merged_n_sources=0)
+    with pytest.raises(ValueError, match="merged_max_missing must be at least 0"):
+        GroupConfig(merged_max_missing=-1)
     with pytest.raises(ValueError, match=r"persistence must be in \[0, 1\)"):
         GroupConfig(persistence=1.0)
     with pytest.raises(ValueError, match=r"max_level_change must be in \(0, 1\]"):

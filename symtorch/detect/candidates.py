@@ -266,12 +266,18 @@ def _pinned(tup: list[int], pinning: Pinning, ok: np.ndarray, min_pin: float, ma
 
 
 def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delta: float = 0.9,
-                     slack: float = 0.5 * EPS_KLC, max_candidates: int = 20000) -> tuple[np.ndarray, int]:
+                     slack: float = 0.5 * EPS_KLC, max_candidates: int = 20000,
+                     max_missing: int = 0) -> tuple[np.ndarray, int]:
     """Ordered target tuples ``q`` for a source tuple ``p`` that keep geodesic distances (ALGORITHM §5.2).
 
     Enumerated level by level (all targets for ``p_1``, extended by all targets for ``p_2``, ...),
     dropping a partial tuple as soon as ``|d(p_i, p_j) - d(q_i, q_j)| > (1 - delta) max(...) + slack``
     (the ratio test with a slack for short distances) or ``allowed[p_i, q_i]`` is False.
+
+    With ``max_missing`` > 0 a partial tuple that no target extends at some level goes on with -1
+    there (no target; at most that many per tuple, and only where none extends it): a near-isometry
+    moves some extrema off their partners' images (four arms bent at R = 4: six of sixteen points
+    map 1.2 KLC radii from any point of the set), and a tuple holding one would otherwise find none.
 
     Args:
         src: [t] indices into the point set.
@@ -279,26 +285,35 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
         allowed: [n, n] bool descriptor agreement.
 
     Returns:
-        ([N, t] target tuples, number of ordered tuples before pruning).
+        ([N, t] target tuples, -1 where missing; number of ordered tuples before pruning).
     """
     n, t = dist.shape[0], len(src)
     total = math.perm(n, t)
     part = np.flatnonzero(allowed[src[0]])[:, None]  # [N, 1]
+    if max_missing > 0:
+        part = np.concatenate([part, [[-1]]])
+    dist_ = np.pad(dist, ((0, 1), (0, 1)))  # index -1: a missing target, its distances unchecked
     for j in range(1, t):
         q = np.flatnonzero(allowed[src[j]])
-        if len(part) == 0 or len(q) == 0:
+        if len(part) == 0:
             return np.zeros((0, t), dtype=np.int64), total
         dp = dist[src[:j], src[j]]  # [j]
-        dq = dist[part][:, :, q]  # [N, j, nq]
+        dq = dist_[part][:, :, q]  # [N, j, nq]
         lim = (1 - delta) * np.maximum(dq, dp[None, :, None]) + slack
-        ok = (np.abs(dq - dp[None, :, None]) <= lim).all(1)  # [N, nq]
+        ok = ((np.abs(dq - dp[None, :, None]) <= lim) | (part[:, :, None] < 0)).all(1)  # [N, nq]
         ok &= (part[:, :, None] != q[None, None, :]).all(1)  # distinct targets
         a, b = np.nonzero(ok)
-        part = np.concatenate([part[a], q[b, None]], 1)
+        grown = np.concatenate([part[a], q[b, None]], 1)
+        if max_missing > 0:  # the tuples nothing extends, with room for one more miss
+            stuck = np.flatnonzero(~ok.any(1) & ((part < 0).sum(1) < max_missing))
+            grown = np.concatenate([grown, np.concatenate([part[stuck], np.full((len(stuck), 1), -1)], 1)])
+        part = grown
         if len(part) > max_candidates:
             warnings.warn(f"{len(part)} partial candidates; keeping {max_candidates} (continuous "
                           "symmetry or a point set with little structure)", stacklevel=2)
             part = part[:max_candidates]
+    if max_missing > 0:  # a tuple needs two targets to say anything
+        part = part[(part >= 0).sum(1) >= 2]
     return part, total
 
 
@@ -381,7 +396,8 @@ class TuplePairs(NamedTuple):
 
 
 def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int,
-                delta: float, pinning: Pinning | None = None, persistent: np.ndarray | None = None) -> TuplePairs:
+                delta: float, pinning: Pinning | None = None, persistent: np.ndarray | None = None,
+                max_missing: int = 0) -> TuplePairs:
     """A few well-spread source tuples of ``size`` points (more where ``pinning`` says a band is
     held weakly), each paired with every ordered target tuple that keeps its geodesic distances
     (ratio ``delta``) and whose points are allowed partners.
@@ -390,7 +406,9 @@ def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int
     ``persistent`` (:func:`persistent_points`) and ``size`` such points, the first of the
     ``n_sources`` tuples is drawn from those alone: a target tuple exists only where the element maps
     every source point onto a point of the set, which the flat-region extrema of a remesh are not
-    near. Tuples may differ in length; the rows of the result are padded with -1 (``TuplePairs``).
+    near. Tuples may differ in length; the rows of the result are padded with -1 (``TuplePairs``),
+    and a source point whose target is missing (``max_missing``, :func:`candidate_tuples`) is -1 in
+    its row too, so that it constrains nothing.
     """
     partner = allowed.sum(1) > 1
     srcs = []
@@ -401,10 +419,11 @@ def tuple_pairs(dist: np.ndarray, allowed: np.ndarray, size: int, n_sources: int
     tuples_src, tuples_dst, before = [], [], 0
     width = max([len(t) for t in srcs], default=size)
     for src in srcs:
-        q, tot = candidate_tuples(src, dist, allowed, delta)
+        q, tot = candidate_tuples(src, dist, allowed, delta, max_missing=max_missing)
         before += tot
         pad = np.full((len(q), width - len(src)), -1, dtype=np.int64)
-        tuples_src.append(np.concatenate([np.repeat(np.asarray(src)[None], len(q), 0), pad], 1))
+        p = np.where(q >= 0, np.asarray(src)[None], -1)
+        tuples_src.append(np.concatenate([p, pad], 1))
         tuples_dst.append(np.concatenate([q, pad], 1))
     P = np.concatenate(tuples_src) if tuples_src else np.zeros((0, size), dtype=np.int64)
     Q = np.concatenate(tuples_dst) if tuples_dst else np.zeros((0, size), dtype=np.int64)

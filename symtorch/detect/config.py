@@ -160,17 +160,27 @@ class GroupConfig:
             ``'drop'`` reports the subgroup as the group (the half's distortions stay in
             ``diagnostics.group.near_symmetry_coset``); ``'keep'`` reports the whole group.
         merged_gap: where the group found leaves the spectrum's multiplicities unexplained (every
-            element of order <= 2: ``group_path.unexplained_multiplicities``), the group path runs
-            again in bands merged at this many local spacings, its maps refined as full orthogonal
+            element of order <= 2: ``group_path.unexplained_multiplicities``) or is what a bend
+            leaves of a larger one (a half turn among involutions: ``group_path.bend_remnant``),
+            the group path runs again in bands merged at this many local spacings, its maps refined as full orthogonal
             matrices (a bend splits the eigenspaces its rotations mix, and mixes eigenfunctions
             of different bands); the larger group is kept. 0: no second run.
-        merged_desc_tol: ``desc_tol`` of that second run: a bend moves the descriptors too (the
-            tips of four arms bent at R = 4 differ by 1.6 median distances from their partners').
+        merged_desc_tol: ``desc_tol`` of that second run where the multiplicities asked for it:
+            a bend moves the descriptors too (the tips of four arms bent at R = 4 differ by 1.6
+            median distances from their partners').
         merged_relative_tol: ... and a pair is also admitted there within this share of the two
             points' own typical descriptor distances (``candidates.partner_mask``).
-        merged_n_sources: ``n_sources`` of that second run: a bend moves some extrema off their
-            partners' images, and a source tuple holding one finds no target (four arms bent at
-            R = 4 and elevation -17 degrees: C2v with 3 tuples, C4v with 6).
+        merged_n_sources: ``n_sources`` of that second run where the multiplicities asked for it:
+            a bend moves some extrema off their partners' images, and a source tuple holding one
+            finds no target (four arms bent at R = 4 and elevation -17 degrees: C2v with 3
+            tuples, C4v with 6).
+        merged_max_missing: in that second run, a candidate target tuple may leave this many of
+            its source points without a target where no point of the set extends it
+            (``candidates.candidate_tuples``): a bend moves some extrema off their partners'
+            images (0, the default: every source point needs one). At 1, measured on
+            ``group_shapes_table.py``: four arms drooping 17 degrees bent at R = 4 and the chiral
+            six and five arms bent at R = 3 come out whole, a chiral four bent at R = 6 loses its
+            quarter turns, and the merged rows take about twice as long; not yet the default.
         dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
             next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
@@ -212,6 +222,7 @@ class GroupConfig:
     merged_desc_tol: float = 1.2
     merged_relative_tol: float = 0.5
     merged_n_sources: int = 6
+    merged_max_missing: int = 0
     dipoles: float = 1.0
     persistence: float = 0.05
     max_level_change: float = 0.03
@@ -233,6 +244,8 @@ class GroupConfig:
             raise ValueError(f"merged_relative_tol must be at least 0, got {self.merged_relative_tol!r}")
         if self.merged_n_sources < 1:
             raise ValueError(f"merged_n_sources must be at least 1, got {self.merged_n_sources!r}")
+        if self.merged_max_missing < 0:
+            raise ValueError(f"merged_max_missing must be at least 0, got {self.merged_max_missing!r}")
 
 
 # The keywords ``detect_symmetries`` took before ``config=`` existed, and the reflection-path field

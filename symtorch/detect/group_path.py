@@ -288,7 +288,8 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
                            cfg.merged_relative_tol if approximate else 0.0)
     coef = disk_coefficients(spectrum.evecs[:, :basis.k0], spectrum.mass, pts.fields)  # [n, R, k0]
     pairs = tuple_pairs(pts.dist, allowed, min(basis.m + 1, len(pts.points)), cfg.n_sources, cfg.delta,
-                        Pinning(coef, basis.bands0), pts.persistent)
+                        Pinning(coef, basis.bands0), pts.persistent,
+                        max_missing=cfg.merged_max_missing if approximate else 0)
     diag = replace(diag, n_points_with_partner=pairs.n_with_partner, tuple_size=pairs.src.shape[1],
                    n_source_tuples=pairs.n_sources, n_candidates_before=pairs.n_before,
                    n_candidates=int(len(pairs.src)))
