@@ -38,7 +38,10 @@ split at the bands' 0.3 and at ``merged_gap``: what no block-diagonal matrix can
 index-2 coset other than the orientation one to its subgroup's bent elements, and whether it lies
 apart from the subgroup (``group_path.bent_coset_ratios``: what ``near_symmetry_coset`` drops above
 ``APPROXIMATE_SUBGROUP_RATIO``), and the distortions of a coset dropped; with ``--group
-near_mirrors='"keep"'`` a dropped coset stays and reads in the ratio.
+near_mirrors='"keep"'`` a dropped coset stays and reads in the ratio. ``--shares`` adds the
+spectrum's 2-D shares at the group path's two scales (``group_path.multiplicity_shares``, the
+spectrum ``detect_symmetries`` computes): what routes a shape to the group path (both >= 0.45), to
+a second opinion or the merged attempt (one).
 """
 from __future__ import annotations
 
@@ -62,7 +65,8 @@ from symtorch.descriptors import descriptors  # noqa: E402
 from symtorch.detect.candidates import descriptor_ratios  # noqa: E402
 from symtorch.detect.config import DetectConfig, GroupConfig  # noqa: E402
 from symtorch.detect.group_elements import EXACT_ENOUGH  # noqa: E402
-from symtorch.detect.group_path import bent_coset_ratios, group_basis, invariant_point_set  # noqa: E402
+from symtorch.detect.group_path import (bent_coset_ratios, group_basis, invariant_point_set,  # noqa: E402
+                                        multiplicity_shares)
 from symtorch.maps import p2p_to_fmap  # noqa: E402
 from symtorch.spectrum import BAND_REL_GAP  # noqa: E402
 from symtorch.detect.verification import HeatLevels, isometry_score, standardized_descriptors  # noqa: E402
@@ -253,6 +257,8 @@ def main() -> None:
                     "coarse matrix outside the bands, split at 0.3 and at merged_gap")
     ap.add_argument("--cosets", action="store_true", help="the merged attempt's cosets other than the "
                     "orientation one, against their subgroups' bent elements")
+    ap.add_argument("--shares", action="store_true", help="the spectrum's 2-D shares at the group "
+                    "path's two scales (group_path.multiplicity_shares)")
     args = ap.parse_args()
     knobs = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.group)}
     cfg = DetectConfig(group=GroupConfig(**knobs))
@@ -263,11 +269,13 @@ def main() -> None:
     extra += " | true elements' largest level change | spurious elements' level change" if args.levels else ""
     extra += " | true elements' off-band share, bands at 0.3 | at merged_gap" if args.offband else ""
     extra += " | other cosets' largest ratio to bent subgroup (apart) | dropped coset's median" if args.cosets else ""
+    extra += " | 2-D shares (coarse / twice)" if args.shares else ""
     print("| shape | V | truth | found | matched | spurious | warnings | rotations' / mirrors' distortion | wall s | CPU s"
           + extra + " |")
     print("|---|---:|---|---|---:|---:|---:|---|---:|---:|" + ("---:|" if args.partners else "")
           + ("---:|---|---|---:|" if args.truth else "") + ("---:|---|" if args.levels else "")
-          + ("---:|---:|" if args.offband else "") + ("---:|---:|" if args.cosets else ""))
+          + ("---:|---:|" if args.offband else "") + ("---:|---:|" if args.cosets else "")
+          + ("---:|" if args.shares else ""))
     rows = (random_bent_arms(args.random_arms, args.seed) if args.random_arms
             else random_shapes(args.random_shapes, args.seed) if args.random_shapes else SHAPES)
     for name, build, group, order, radius in rows:
@@ -307,6 +315,9 @@ def main() -> None:
             print(offband_columns(v, f, symmetry_maps(v0, mats), cfg), end="")
         if args.cosets:
             print(coset_columns(res, cfg.group), end="")
+        if args.shares:
+            sp = laplacian_spectrum(v, f, k=max(cfg.k_refine + 10, 60))  # as detect_symmetries computes it
+            print(" {:.2f} / {:.2f} |".format(*multiplicity_shares(sp.evals, cfg.group_basis[0])), end="")
         print(flush=True)
 
 

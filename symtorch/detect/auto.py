@@ -136,8 +136,7 @@ def detect_symmetries(shape, faces=None, *, mode: str = "auto", spectrum: Spectr
 def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, solver: GeodesicSolver,
                 timer: _Timer, batch_device: torch.device) -> SymmetryResult:
     """Steps 2-5 of the module docstring: the kept result, with every path's diagnostics."""
-    from .group_path import (MULTIPLICITY_SHARE, detect_group, has_multiplicities,  # imported here: tests
-                             multiplicity_shares)  # patch them
+    from .group_path import detect_group, has_multiplicities  # imported here: tests patch them
     from .reflection import detect_reflection
 
     k_group, k_refine_group = cfg.group_basis
@@ -159,8 +158,7 @@ def _run_policy(verts, faces, spectrum: Spectrum, mode: str, cfg: DetectConfig, 
     if mode == "auto" and grouped is None and (len(reflected.symmetries) == 1
                                                or not reflected.diagnostics.reflection.n_candidates
                                                or _several_involutions(reflected, cfg.group_tol)
-                                               or max(multiplicity_shares(spectrum.evals, k_group))
-                                               >= MULTIPLICITY_SHARE):
+                                               or has_multiplicities(spectrum.evals, k_group, both=False)):
         with warnings.catch_warnings():  # a second opinion: its closure notes are not the user's concern
             warnings.simplefilter("ignore")
             # only a group larger than the reflection path's can replace its result

@@ -290,17 +290,18 @@ def candidate_tuples(src: list[int], dist: np.ndarray, allowed: np.ndarray, delt
     n, t = dist.shape[0], len(src)
     total = math.perm(n, t)
     part = np.flatnonzero(allowed[src[0]])[:, None]  # [N, 1]
-    if max_missing > 0:
+    if max_missing > 0:  # index -1: a missing target, its distances unchecked
         part = np.concatenate([part, [[-1]]])
-    dist_ = np.pad(dist, ((0, 1), (0, 1)))  # index -1: a missing target, its distances unchecked
+        dist = np.pad(dist, ((0, 1), (0, 1)))
     for j in range(1, t):
         q = np.flatnonzero(allowed[src[j]])
         if len(part) == 0:
             return np.zeros((0, t), dtype=np.int64), total
         dp = dist[src[:j], src[j]]  # [j]
-        dq = dist_[part][:, :, q]  # [N, j, nq]
+        dq = dist[part][:, :, q]  # [N, j, nq]
         lim = (1 - delta) * np.maximum(dq, dp[None, :, None]) + slack
-        ok = ((np.abs(dq - dp[None, :, None]) <= lim) | (part[:, :, None] < 0)).all(1)  # [N, nq]
+        close = np.abs(dq - dp[None, :, None]) <= lim
+        ok = (close | (part[:, :, None] < 0) if max_missing > 0 else close).all(1)  # [N, nq]
         ok &= (part[:, :, None] != q[None, None, :]).all(1)  # distinct targets
         a, b = np.nonzero(ok)
         grown = np.concatenate([part[a], q[b, None]], 1)

@@ -223,7 +223,7 @@ def unexplained_multiplicities(result: SymmetryResult, evals: Tensor, k: int = 2
         return False
     # at either scale: the group path has run already, and a bend that splits the pairs of the
     # larger basis still leaves the coarse one dominated by them (six arms bent at R = 4)
-    return max(multiplicity_shares(evals, k)) >= MULTIPLICITY_SHARE
+    return has_multiplicities(evals, k, both=False)
 
 
 def bend_remnant(result: SymmetryResult) -> bool:
@@ -321,7 +321,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     lap("closure")
     if len(coarse.elements) < min_order:  # the largest subgroup of these has at most that many
         if len(coarse.elements) == 2:  # closed: the identity and an involution, a mirror or a half turn
-            keeps = orientation_score(geo.p2p(coarse.elements[1].fmap), geo.verts, torch.as_tensor(faces)) > 0
+            keeps = orientation_score(geo.p2p(coarse.elements[1].fmap), geo.verts, geo.faces) > 0
             diag = replace(diag, coarse_half_turn=bool(keeps))
         return trivial(f"{len(coarse.elements)} elements verified in the coarse basis, fewer than the "
                        f"{min_order} asked for")
@@ -334,7 +334,7 @@ def _detect_group(verts, faces, spectrum: Spectrum, *, k: int, k_refine: int, co
     diag = replace(diag, rejected_exact=rejected)
     lap("upsample")
     symmetries, group, diag = group_of_elements(elements, geo, faces, diag, cfg.near_mirrors, solver,
-                                                heat, cfg.max_level_change, approximate)
+                                                heat, cfg.max_level_change, approximate, cfg.max_distortion)
     lap("group")
     bands = full_bands(basis.k_refine) if approximate else _bands_upto(basis.bands, basis.k_refine)
     return SymmetryResult(symmetries, spectrum, bands, group=group,
@@ -680,16 +680,17 @@ def keep_heat_levels(elements: list[Element], heat: HeatLevels, mass: Tensor, ma
 
 
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
-                          diag: GroupDiagnostics, approximate: bool = False
+                          diag: GroupDiagnostics, approximate: bool = False,
+                          exact: float = EXACT_ENOUGH * GroupConfig.max_distortion
                           ) -> tuple[list[Element], np.ndarray, list[bool], GroupDiagnostics]:
-    """:func:`near_symmetry_coset` (``approximate`` passed on), until none is left
+    """:func:`near_symmetry_coset` (``approximate`` and ``exact`` passed on), until none is left
     (``near_mirrors='drop'``: each round halves the group, the table restricted to the subgroup) or
     once (``'keep'``), with one warning."""
     table = np.asarray(table)
     dropped: list[float] = []
     said = []
     while len(elements) > 2:
-        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev, approximate)
+        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev, approximate, exact)
         if coset is None:
             break
         dist = np.asarray([e.distortion for e in elements])
@@ -724,7 +725,8 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
                       near_mirrors: str = "drop", solver: GeodesicSolver | None = None,
                       heat: HeatLevels | None = None, max_changed: float = GroupConfig.max_level_change,
-                      approximate: bool = False) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
+                      approximate: bool = False, max_distortion: float = GroupConfig.max_distortion
+                      ) -> tuple[list[Symmetry], GroupInfo, GroupDiagnostics]:
     """Stage 10: the largest closed subset of the verified elements, its table, orientation flags,
     name, and the elements in the paper's order (Table 3). Where half of the group is a
     near-symmetry riding on the other half (:func:`near_symmetry_coset`: the mirrors of a chiral
@@ -748,7 +750,8 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
     if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
         elements = point_map_distortions(elements, geo, solver)
-    elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag, approximate)
+    elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag, approximate,
+                                                       EXACT_ENOUGH * max_distortion)
     dist = [e.distortion for e in elements]
     _, residual = cayley_table(torch.stack([e.fmap for e in elements]))
     fixes = fixes_points(torch.stack([e.p2p for e in elements]), x_unit, faces_t)  # Dnh / Dnd, Cs / Ci
@@ -809,8 +812,10 @@ def _trivial_result(spectrum: Spectrum, basis: GroupBasis, diag: GroupDiagnostic
 MULTIPLICITY_SHARE = 0.45
 
 
-def has_multiplicities(evals: Tensor, k: int = 20, min_share: float = MULTIPLICITY_SHARE) -> bool:
-    """Whether the low spectrum is dominated by repeated eigenvalues, at two scales.
+def has_multiplicities(evals: Tensor, k: int = 20, min_share: float = MULTIPLICITY_SHARE,
+                       both: bool = True) -> bool:
+    """Whether the low spectrum is dominated by repeated eigenvalues, at two scales (``both``) or
+    at one of them at least.
 
     The share of the non-constant eigenvalues lying in bands of size >= 2 must reach ``min_share``
     both in the coarse basis (``k`` snapped to a band end) and in twice that (as far as ``evals``
@@ -821,7 +826,7 @@ def has_multiplicities(evals: Tensor, k: int = 20, min_share: float = MULTIPLICI
     meshes (``docs/notes/2026-11-detector-parameters.md``), except two weakly coupled identical parts
     (a pair of glasses), which the group path then answers with its mirror.
     """
-    return min(multiplicity_shares(evals, k)) >= min_share
+    return (min if both else max)(multiplicity_shares(evals, k)) >= min_share
 
 
 def multiplicity_shares(evals: Tensor, k: int = 20) -> tuple[float, float]:
