@@ -84,9 +84,7 @@ from symtorch.shapes import symmetry_maps  # noqa: E402
 # lose them before that); bends the merged bands do not recover (four arms at R = 2.5; six and five
 # chiral arms at R = 3: a mirror, spurious)
 LIMITS = [(f"arms{n}_swept", (lambda n=n: armed_ball(n, sweep=0.5)), f"C{n}v", 2 * n, 0) for n in (6, 8, 10)]
-LIMITS += [("arms4_bent2.5", lambda: armed_ball(4), "C4v", 8, 2.5),
-           ("chiral6_bent3", lambda: armed_ball(6, chiral=True), "C6", 6, 3.0),
-           ("chiral5_bent3", lambda: armed_ball(5, chiral=True), "C5", 5, 3.0)]
+LIMITS += [("arms4_bent2.5", lambda: armed_ball(4), "C4v", 8, 2.5)]
 SHAPES = GROUP_SHAPES + LIMITS
 
 

@@ -437,6 +437,11 @@ GROUP_SHAPES = [
     ("chiral4_bent5", lambda: armed_ball(4, chiral=True, elev=-20.0, length=0.8, width=0.33), "C4", 4, 5.0),
     # ... and one whose pairs hold at neither scale: the second opinion stops at its coarse half turn
     ("chiral4_bent6", lambda: armed_ball(4, chiral=True, elev=-17.87, length=1.19, width=0.396), "C4", 4, 6.0),
+    # added 2026-12-08 (seventh session), from the limits: chiral arms bent at R = 3, whose
+    # near-mirrors of an exact half turn came first among the closed subsets
+    # (group_path._whole_closed_subset)
+    ("chiral6_bent3", lambda: armed_ball(6, chiral=True), "C6", 6, 3.0),
+    ("chiral5_bent3", lambda: armed_ball(5, chiral=True), "C5", 5, 3.0),
 ]
 
 

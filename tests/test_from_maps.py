@@ -5,7 +5,7 @@ from scipy.spatial import cKDTree
 
 from symtorch import shapes
 from symtorch.groups import check_group
-from symtorch.groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
+from symtorch.groups.from_maps import canonical_order, closed_subsets, consistent_orientation, largest_subgroup
 
 
 def test_consistent_orientation_overrides_a_weak_vote():
@@ -41,6 +41,35 @@ def test_largest_subgroup_reads_a_product_that_matches_a_copy_as_the_element():
     cost = [0.0] + [0.1] * 7 + [0.01]
     keep, table = largest_subgroup(p2ps, cost, torch.as_tensor(v), samples)
     assert sorted(keep) == list(range(8)) and check_group(table).is_group
+
+
+def _c4v_parts(v):
+    """The table's C4v maps sorted out: identity, quarter turns, half turn, two perpendicular mirrors."""
+    mats = shapes.true_symmetries("table")
+    maps = [torch.as_tensor(m) for m in shapes.symmetry_maps(v, mats)]
+    det, tr = [np.linalg.det(R) for R in mats], [np.trace(R) for R in mats]
+    e = next(i for i in range(8) if np.isclose(tr[i], 3))
+    quarter = [i for i in range(8) if det[i] > 0 and np.isclose(tr[i], 1)]
+    half = next(i for i in range(8) if det[i] > 0 and np.isclose(tr[i], -1))
+    m1 = next(i for i in range(8) if det[i] < 0)
+    m2 = next(i for i in range(8) if det[i] < 0 and np.allclose(mats[m1] @ mats[i], mats[half]))
+    return maps, e, quarter, half, m1, m2
+
+
+def test_closed_subsets_also_seeds_the_elements_the_greedy_set_left_out():
+    """Quarter turns and two perpendicular mirrors each close a group of four with the half turn
+    but not with each other: the cheaper mirrors' set comes first, the quarter turns' is found too."""
+    v, f = shapes.table(3)
+    maps, e, quarter, half, m1, m2 = _c4v_parts(v)
+    idx = [e, *quarter, half, m1, m2]
+    cost = [0.0, 0.15, 0.15, 0.001, 0.1, 0.1]  # the mirrors cheaper than the quarter turns
+    options = closed_subsets([maps[i] for i in idx], cost, torch.as_tensor(v), torch.arange(0, len(v), 7))
+    sets = [sorted(idx[i] for i in keep) for keep, _ in options]
+    assert sets[0] == sorted([e, half, m1, m2])  # largest_subgroup's, the cheapest first
+    assert sorted([e, half, *quarter]) in sets
+    assert all(check_group(table).is_group for _, table in options)
+    assert largest_subgroup([maps[i] for i in idx], cost, torch.as_tensor(v), torch.arange(0, len(v), 7))[0] \
+        == options[0][0]
 
 
 def test_canonical_order_reads_like_the_paper():

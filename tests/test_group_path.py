@@ -337,6 +337,26 @@ def test_near_symmetry_coset_rule():
     assert near_symmetry_coset(c8v, d, rev8).tolist() == rev8.tolist()
 
 
+def test_whole_closed_subset_prefers_the_set_the_coset_rule_leaves_whole():
+    """A bent chiral four-armed shape (``GROUP_SHAPES`` chiral4_bent6 with one missing target
+    allowed): two near-mirrors of the exact half turn, cheaper than the bent quarter turns, close a
+    group of four with it that the coset rule strips to two; the quarter turns' C4 stays whole."""
+    from symtorch.detect.group_path import _whole_closed_subset
+
+    klein = torch.tensor([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])  # e, h, m1, m2
+    c4 = torch.tensor([[0, 1, 2, 3], [1, 2, 3, 0], [2, 3, 0, 1], [3, 0, 1, 2]])  # e, r, h, r^3
+    # elements: 0 e, 1 h, 2 m1, 3 m2, 4 r, 5 r^3; the mirrors vote reversing
+    dist = np.array([0.0, 0.001, 0.2, 0.2, 0.25, 0.25])
+    scores = [1.0, 1.0, -1.0, -1.0, 1.0, 1.0]
+    options = [([0, 1, 2, 3], klein), ([0, 4, 1, 5], c4)]
+    for near_mirrors, want in (("drop", [0, 4, 1, 5]), ("keep", [0, 1, 2, 3])):
+        keep, _ = _whole_closed_subset(options, dist, scores, near_mirrors, approximate=True, exact=0.025)
+        assert keep == want
+    # the half turn as bent as the rest: nothing rides on it, the first set stays
+    dist = np.array([0.0, 0.2, 0.2, 0.2, 0.25, 0.25])
+    assert _whole_closed_subset(options, dist, scores, "drop", True, 0.025)[0] == [0, 1, 2, 3]
+
+
 def test_near_symmetry_coset_of_approximate_maps():
     """The merged attempt's full orthogonal maps (``approximate``): a bend spares the elements that
     respect it, and only the orientation coset is weighed, at a lower ratio."""

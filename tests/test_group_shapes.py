@@ -14,7 +14,8 @@ near-mirror rule off a symmetric triangulation), the regular hexagonal prism (th
 constraints), the pentagonal antiprism and the centrosymmetric solid (inversions named from fixed
 points), the flat trigonal antiprism (a near-symmetric index-2 coset) and the nonagonal prism (not
 continuous: the heat levels) and the four arms bent at R = 4 (a coset that only nearly holds:
-the merged attempt's full orthogonal maps; ``extended``); the rest is ``slow``. Eight rows are checked
+the merged attempt's full orthogonal maps) and the chiral five arms bent at R = 3 (the closed
+subset the coset rule leaves whole; ``extended``); the rest is ``slow``. Eight rows are checked
 ACVD-remeshed too (``REMESHED``, with pyacvd; extended).
 """
 import warnings
@@ -36,7 +37,7 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 QUICK = {"star4_thin", "box"}  # the quick run; CI (extended) adds these two, the rest is slow
 EXTENDED = {"star5_thin", "arms8", "star4_h035_bent", "star8_thin_bent", "arms6_bent3", "star5_extruded",
             "chiral8_jitter", "hex_prism", "antiprism5", "antiprism3_flat", "centrosymmetric", "nonagon_prism",
-            "arms4_bent4"}
+            "arms4_bent4", "chiral5_bent3"}
 
 
 def _params():

@@ -76,7 +76,7 @@ from ..descriptors import descriptors, hks_at_scales
 from ..geodesics import GeodesicSolver
 from ..groups.algebra import _subtable, _z2_homs, cayley_table, identity_index
 from ..groups.naming import GroupInfo, fixes_points, group_info, kind_of, orientation_score
-from ..groups.from_maps import canonical_order, consistent_orientation, largest_subgroup
+from ..groups.from_maps import canonical_order, closed_subsets, consistent_orientation
 from ..procrustes import block_procrustes
 from ..spectrum import BAND_REL_GAP, Spectrum, band_boundary, eigen_bands, full_bands, solved_bands
 from ..units import EPS_KLC, mean_edge
@@ -679,6 +679,26 @@ def keep_heat_levels(elements: list[Element], heat: HeatLevels, mass: Tensor, ma
     return [elements[i] for i in keep], diag
 
 
+def _near_symmetry_rounds(table, distortion, rev, approximate: bool, exact: float, drop: bool = True
+                          ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`near_symmetry_coset`'s rounds: [(indices of the elements weighed, [len] bool coset
+    found among them)], until none is left (``drop``: each round weighs the subgroup the last left)
+    or once."""
+    table = np.asarray(table)
+    d, rev = np.asarray(distortion, dtype=np.float64), np.asarray(rev, dtype=bool)
+    idx, rounds = np.arange(len(d)), []
+    while len(idx) > 2:
+        coset = near_symmetry_coset(table, d[idx], rev[idx], approximate, exact)
+        if coset is None:
+            break
+        rounds.append((idx, coset))
+        if not drop:
+            break
+        keep = np.flatnonzero(~coset)
+        table, idx = _subtable(table, keep), idx[keep]
+    return rounds
+
+
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
                           diag: GroupDiagnostics, approximate: bool = False,
                           exact: float = EXACT_ENOUGH * GroupConfig.max_distortion
@@ -687,39 +707,64 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
     (``near_mirrors='drop'``: each round halves the group, the table restricted to the subgroup) or
     once (``'keep'``), with one warning."""
     table = np.asarray(table)
+    dist = np.asarray([e.distortion for e in elements])
+    rounds = _near_symmetry_rounds(table, dist, rev, approximate, exact, near_mirrors == "drop")
     dropped: list[float] = []
     said = []
-    while len(elements) > 2:
-        coset = near_symmetry_coset(table, [e.distortion for e in elements], rev, approximate, exact)
-        if coset is None:
-            break
-        dist = np.asarray([e.distortion for e in elements])
+    for idx, coset in rounds:
+        d = dist[idx]
         inner = np.flatnonzero(~coset)[1:]  # identity first, never in the coset
-        what = ("orientation-reversing elements" if list(coset) == list(rev)
+        what = ("orientation-reversing elements" if list(coset) == [rev[i] for i in idx]
                 else "elements of an index-2 coset")
         said.append(f"the {int(coset.sum())} {what} are near-symmetries riding on a near-exact subgroup "
-                    f"of {int((~coset).sum())} (median distortion {np.median(dist[coset]):.3f} against "
-                    f"{np.median(dist[inner]):.3f} EPS_KLC)")
-        dropped += [round(float(x), 4) for x in dist[coset]]
-        if near_mirrors != "drop":
-            break
-        keep = np.flatnonzero(~coset)
-        table = _subtable(table, keep)
-        elements = [elements[i] for i in keep]
-        rev = [rev[i] for i in keep]
+                    f"of {int((~coset).sum())} (median distortion {np.median(d[coset]):.3f} against "
+                    f"{np.median(d[inner]):.3f} EPS_KLC)")
+        dropped += [round(float(x), 4) for x in d[coset]]
     if said:
         diag = replace(diag, near_symmetry_coset=dropped)
         if near_mirrors == "drop":
+            idx, coset = rounds[-1]
+            keep = idx[~coset]
+            table = _subtable(table, keep)
+            elements = [elements[i] for i in keep]
+            rev = [rev[i] for i in keep]
             rest = "rotations" if not any(rev) else "elements of the subgroup"
             warnings.warn(f"{'; '.join(said)}: left out, the group is the {len(elements)} {rest} "
                           f"(GroupConfig(near_mirrors='keep') keeps them; their distortions: "
                           f"diagnostics.group.near_symmetry_coset)", stacklevel=3)
         else:
+            idx, coset = rounds[0]
             sub = int((~coset).sum())
             rest = "rotations" if list(coset) == list(rev) else "elements of that subgroup"
             warnings.warn(f"{said[0]}: kept, but the exact group may be the {sub} {rest} alone "
                           f"(diagnostics.group.near_symmetry_coset)", stacklevel=3)
     return elements, table, rev, diag
+
+
+def _whole_closed_subset(options: list[tuple[list[int], Tensor]], dist: np.ndarray, scores: list[float],
+                         near_mirrors: str, approximate: bool, exact: float) -> tuple[list[int], Tensor]:
+    """Of :func:`~symtorch.groups.from_maps.closed_subsets`, the one that keeps the most elements
+    after :func:`near_symmetry_coset` (the first, the cheapest greedy set, among equals): two
+    near-mirrors of a bent chiral shape's half turn close a group of four with it as its quarter
+    turns do, and come first where they are cheaper, yet ride on it as a near-symmetry the coset
+    rule strips, while the quarter turns are whole."""
+    if len(options) == 1:
+        return options[0]
+    drop = near_mirrors == "drop"
+
+    def kept(option) -> int:
+        keep, table = option
+        rev = consistent_orientation(table, [scores[i] for i in keep]).numpy()
+        rounds = _near_symmetry_rounds(table, dist[keep], rev, approximate, exact, drop)
+        if not (rounds and drop):
+            return len(keep)
+        idx, coset = rounds[-1]
+        return int((~coset).sum())
+
+    sizes = [kept(o) for o in options]
+    best = int(np.argmax(sizes))
+    log.debug("closed subsets %s kept %s", [o[0] for o in options], sizes)
+    return options[best]
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
@@ -742,12 +787,15 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     faces_t = torch.as_tensor(faces)
     if heat is not None:
         elements, diag = keep_heat_levels(elements, heat, geo.mass, max_changed, diag)
-    keep, table = largest_subgroup([e.p2p for e in elements], [e.distortion for e in elements], x_unit,
-                                   geo.score_samples)
+    dist = np.asarray([e.distortion for e in elements])
+    scores = [orientation_score(e.p2p, x_unit, faces_t) for e in elements]
+    options = closed_subsets([e.p2p for e in elements], list(dist), x_unit, geo.score_samples)
+    keep, table = _whole_closed_subset(options, dist, scores, near_mirrors, approximate,
+                                       EXACT_ENOUGH * max_distortion)
     if len(keep) < len(elements):
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
-    rev = consistent_orientation(table, [orientation_score(e.p2p, x_unit, faces_t) for e in elements])
+    rev = consistent_orientation(table, [scores[i] for i in keep])
     if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
         elements = point_map_distortions(elements, geo, solver)
     elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag, approximate,

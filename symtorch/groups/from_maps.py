@@ -22,7 +22,7 @@ from .algebra import _subtable, _z2_homs, check_group
 log = logging.getLogger(__name__)
 
 
-__all__ = ["map_table", "largest_subgroup", "consistent_orientation", "canonical_order"]
+__all__ = ["map_table", "largest_subgroup", "closed_subsets", "consistent_orientation", "canonical_order"]
 
 
 def map_table(p2ps: list[Tensor], verts_unit: Tensor, samples: Tensor) -> tuple[Tensor, Tensor]:
@@ -75,6 +75,19 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     Returns:
         (indices kept, [G', G'] long table among them, renumbered in the order kept).
     """
+    return closed_subsets(p2ps, cost, verts_unit, samples, tol, same_tol)[0]
+
+
+def closed_subsets(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
+                   tol: float = 1.0, same_tol: float = 0.5) -> list[tuple[list[int], Tensor]]:
+    """:func:`largest_subgroup`'s greedy set first, then the distinct greedy sets seeded by each
+    element it left out (that element first, then the rest by ``cost``): where two near-isometries
+    that do not compose (a bent chiral shape's quarter turns and two near-mirrors of its half
+    turn) each close a group with the exact elements, the cheapest is not always the true one.
+
+    Returns:
+        [(indices kept, [G', G'] long table among them)], the first :func:`largest_subgroup`'s.
+    """
     T, gap = (x.numpy() for x in map_table(p2ps, verts_unit, samples))
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
     pos = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
@@ -94,7 +107,20 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
             rep[[j for j in order if rep[j] == j and j != i and same[i, j]]] = i
     T = rep[T]
     ok = gap <= tol
-    group = [e]
+    first = _greedy_closed(T, ok, rep, order)
+    found = [first]
+    for seed in order[1:]:
+        if rep[seed] != seed or seed in first:
+            continue
+        group = _greedy_closed(T, ok, rep, [e, seed] + [i for i in order[1:] if i != seed])
+        if len(group) > 1 and all(sorted(group) != sorted(g) for g in found):
+            found.append(group)
+    return [(g, torch.as_tensor(_subtable(T, np.asarray(g)), dtype=torch.long)) for g in found]
+
+
+def _greedy_closed(T: np.ndarray, ok: np.ndarray, rep: np.ndarray, order: list[int]) -> list[int]:
+    """The greedy closed set of :func:`largest_subgroup`, the elements tried in ``order`` (identity first)."""
+    group = [order[0]]
     for el in order[1:]:
         if rep[el] != el or el in group:
             continue  # a duplicate of another element, or present
@@ -110,7 +136,7 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
             trial += new
         if trial is not None and _forms_group(T, trial):
             group = trial
-    return group, torch.as_tensor(_subtable(T, np.asarray(group)), dtype=torch.long)
+    return group
 
 
 def consistent_orientation(table: Tensor, scores) -> Tensor:
