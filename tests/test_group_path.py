@@ -305,6 +305,10 @@ def test_near_symmetry_coset_rule():
     assert coset([0.0, 0.045, 0.046, 0.044, 0.21, 0.22, 0.2, 0.21]) == mirrors.tolist()
     # a true group bent or remeshed: both halves of one size, above the floor
     assert coset([0.0, 0.18, 0.2, 0.19, 0.2, 0.21, 0.19, 0.2]) is None
+    # a bent chiral shape: the bend adds to both halves (nine chiral arms at R = 8: 0.133 / 0.228,
+    # 1.71 times), a true bent remeshed group up to 1.06 times (eight arms at R = 8: 0.095 / 0.101)
+    assert coset([0.0, 0.13, 0.133, 0.136, 0.228, 0.23, 0.225, 0.228]) == mirrors.tolist()
+    assert coset([0.0, 0.095, 0.094, 0.096, 0.101, 0.1, 0.102, 0.101]) is None
     # one true group: both halves of one size, or both small (twelve arms: 0.007 / 0.032)
     assert coset([0.0, 0.05, 0.07, 0.06, 0.04, 0.05, 0.05, 0.04]) is None
     assert coset([0.0, 0.007, 0.007, 0.007, 0.03, 0.03, 0.035, 0.03]) is None
@@ -371,10 +375,11 @@ def test_near_symmetry_coset_of_approximate_maps():
     d = [0.0, 0.1603, 0.0001, 0.1603, 0.0006, 0.1593, 0.0017, 0.1607]
     assert near_symmetry_coset(c4v, d, mirrors) is not None
     assert near_symmetry_coset(c4v, d, mirrors, approximate=True) is None
-    # a bent chiral shape's near-mirrors, 1.6 times its rotations (seven arms at R = 4): below the
-    # exact maps' ratio, above the approximate ones'; a true bent group reads about 1.0
+    # a bent chiral shape's near-mirrors, 1.6 times its rotations (seven arms at R = 4): a bend adds
+    # to both halves, so they stand out as a near-symmetry however the maps were refined; a true
+    # bent group reads about 1.0
     d = [0.0, 0.139, 0.139, 0.139, 0.223, 0.223, 0.223, 0.223]
-    assert near_symmetry_coset(c4v, d, mirrors) is None
+    assert near_symmetry_coset(c4v, d, mirrors).tolist() == mirrors.tolist()
     assert near_symmetry_coset(c4v, d, mirrors, approximate=True).tolist() == mirrors.tolist()
     d = [0.0, 0.149, 0.149, 0.149, 0.146, 0.146, 0.146, 0.146]
     assert near_symmetry_coset(c4v, d, mirrors, approximate=True) is None

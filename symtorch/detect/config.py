@@ -177,10 +177,9 @@ class GroupConfig:
         merged_max_missing: in that second run, a candidate target tuple may leave this many of
             its source points without a target where no point of the set extends it
             (``candidates.candidate_tuples``): a bend moves some extrema off their partners'
-            images (0, the default: every source point needs one). At 1, measured on
-            ``group_shapes_table.py``: four arms drooping 17 degrees bent at R = 4 and the chiral
-            six and five arms bent at R = 3 come out whole, a chiral four bent at R = 6 loses its
-            quarter turns, and the merged rows take about twice as long; not yet the default.
+            images (0: every source point needs one). Measured on ``group_shapes_table.py``: at
+            1, four arms drooping 17 degrees bent at R = 4 come out C4v for C2v, every other row
+            and random draw as at 0, and the merged rows take 1.3-2 times as long.
         dipoles: weight of the dipole constraints (each tuple point's disk tilted towards the
             next, ``constraints.dipole_coefficients``) in a second solution of every candidate,
             kept where it differs from the disks' (``group_path.candidate_fmaps``); 0: none. They
@@ -222,7 +221,7 @@ class GroupConfig:
     merged_desc_tol: float = 1.2
     merged_relative_tol: float = 0.5
     merged_n_sources: int = 6
-    merged_max_missing: int = 0
+    merged_max_missing: int = 1
     dipoles: float = 1.0
     persistence: float = 0.05
     max_level_change: float = 0.03

@@ -528,9 +528,12 @@ def cluster_representatives(C: Tensor, bandwidth: float, max_modes: int) -> tupl
 
 #: near_symmetry_coset's rule for the orientation-reversing half (``group_elements.far_above``): its
 #: median distortion this many times the rotations'. The halves of one true group read about one
-#: size on regular meshes and ACVD remeshes (0.8-1.1 times), a chiral shape's mirrors 2.9-5.0 times
-#: on a remesh and 25-40 times on a regular mesh (BENCHMARKS.md, "Wider shapes")
-COSET_RATIO = 2.0
+#: size on regular meshes and ACVD remeshes, bent or not (0.8-1.1 times), and where the elements
+#: were refined as full orthogonal matrices (the merged-band attempt: 0.5-1.01). A chiral shape's
+#: mirrors read 2.9-5.0 times on a remesh and 25-40 times on a regular mesh; a bend adds to both
+#: halves, so a bent chiral shape's read only 1.45-2.45 times its rotations (nine arms at R = 8:
+#: 1.71, C9v for C9 at the former 2.0; the merged attempt's 1.6-1.9; BENCHMARKS.md, "Wider shapes")
+COSET_RATIO = 1.3
 #: ... and for any other index-2 coset, this, and every element of the coset above every element of
 #: the subgroup: a bend spares the half of a slab's group that respects it, up to 3.8 times less
 #: distorted than the rest and apart from it (a bent thin eight-pointed star), as far apart as the
@@ -538,12 +541,7 @@ COSET_RATIO = 2.0
 #: exactly symmetric triangulation (a squashed trigonal antiprism's D3d read as D6h: 0.19 against
 #: 0.0004) stands out by far more
 SUBGROUP_RATIO = 10.0
-#: ... and the orientation coset's where the elements were refined as full orthogonal matrices (the
-#: merged-band attempt of a bent shape): that refinement fits every near-isometry as well as the
-#: metric lets it, so the halves of a true bent group read 0.5-1.01 times each other, a bent chiral
-#: shape's near-mirrors 1.6-1.9 times its rotations (``group_shapes_table.py --random-arms``)
-APPROXIMATE_COSET_RATIO = 1.3
-#: ... and any other coset of those maps, against its subgroup's inexact elements (above
+#: ... and any other coset of the merged attempt's maps (full orthogonal matrices), against its subgroup's inexact elements (above
 #: :data:`~.group_elements.EXACT_ENOUGH` of ``max_distortion``: what the bend spares is left out),
 #: with every element of the coset above every element of the subgroup: the other halves of true
 #: bent groups read 0.48-1.01 times their subgroups' bent elements and never apart from them, the
@@ -569,9 +567,8 @@ def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = F
         table: [G, G] group table; distortion: [G] floats, KLC radii; reversing: optional [G] bool,
             the orientation-reversing elements (their coset is held to :data:`COSET_RATIO`, any
             other to :data:`SUBGROUP_RATIO` and separation); approximate: the elements are maps of
-            a near-isometry refined as full orthogonal matrices (the merged-band attempt): the
-            orientation-reversing coset is held to :data:`APPROXIMATE_COSET_RATIO`, any other to
-            :data:`APPROXIMATE_SUBGROUP_RATIO` of its subgroup's elements above ``exact`` and to
+            a near-isometry refined as full orthogonal matrices (the merged-band attempt): any
+            coset other than the orientation one is held to :data:`APPROXIMATE_SUBGROUP_RATIO` of its subgroup's elements above ``exact`` and to
             separation (a bend spares the elements that respect it: four arms bent about one axis
             keep their two mirrors and half turn exactly and their quarter turns to 0.16 KLC
             radii; a subgroup that is exact throughout gives nothing to compare with).
@@ -588,7 +585,7 @@ def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = F
     for coset, inner, mc, mh in _index2_cosets(table, d):
         orientation = rev is not None and bool((coset == rev).all())
         if orientation:
-            stands_out = far_above(mc, mh, APPROXIMATE_COSET_RATIO if approximate else COSET_RATIO)
+            stands_out = far_above(mc, mh, COSET_RATIO)
         elif approximate:
             mh = _bent_median(d, inner, exact)
             if mh is None:
@@ -648,8 +645,9 @@ def coset_spread(table, distortion) -> float:
 
 
 #: a coset this many times its subgroup's distortion is measured again as vertex-to-point maps
-#: (:func:`group_of_elements`): the orientation coset's rule drops at :data:`COSET_RATIO`
-PRECISE_SPREAD = 1.5
+#: (:func:`group_of_elements`) before the near-symmetry rule weighs it: where the orientation
+#: coset's rule (:data:`COSET_RATIO`) could drop it
+PRECISE_SPREAD = COSET_RATIO
 
 
 def keep_heat_levels(elements: list[Element], heat: HeatLevels, mass: Tensor, max_changed: float,
