@@ -541,8 +541,9 @@ COSET_RATIO = 1.3
 #: exactly symmetric triangulation (a squashed trigonal antiprism's D3d read as D6h: 0.19 against
 #: 0.0004) stands out by far more
 SUBGROUP_RATIO = 10.0
-#: ... and any other coset of the merged attempt's maps (full orthogonal matrices), against its subgroup's inexact elements (above
-#: :data:`~.group_elements.EXACT_ENOUGH` of ``max_distortion``: what the bend spares is left out),
+#: ... and any other coset of the merged attempt's maps (full orthogonal matrices), against its
+#: subgroup's inexact elements (above :data:`~.group_elements.EXACT_ENOUGH` of ``max_distortion``:
+#: what the bend spares is left out),
 #: with every element of the coset above every element of the subgroup: the other halves of true
 #: bent groups read 0.48-1.01 times their subgroups' bent elements and never apart from them, the
 #: horizontal mirrors of seven arms drooping 6 degrees and bent at R = 5 (a spurious D7h for C7v)
@@ -568,8 +569,8 @@ def near_symmetry_coset(table, distortion, reversing=None, approximate: bool = F
             the orientation-reversing elements (their coset is held to :data:`COSET_RATIO`, any
             other to :data:`SUBGROUP_RATIO` and separation); approximate: the elements are maps of
             a near-isometry refined as full orthogonal matrices (the merged-band attempt): any
-            coset other than the orientation one is held to :data:`APPROXIMATE_SUBGROUP_RATIO` of its subgroup's elements above ``exact`` and to
-            separation (a bend spares the elements that respect it: four arms bent about one axis
+            coset other than the orientation one is held to :data:`APPROXIMATE_SUBGROUP_RATIO`
+            of its subgroup's elements above ``exact`` and to separation (a bend spares the elements that respect it: four arms bent about one axis
             keep their two mirrors and half turn exactly and their quarter turns to 0.16 KLC
             radii; a subgroup that is exact throughout gives nothing to compare with).
 
@@ -697,6 +698,14 @@ def _near_symmetry_rounds(table, distortion, rev, approximate: bool, exact: floa
     return rounds
 
 
+def _survivors(rounds: list[tuple[np.ndarray, np.ndarray]], n: int) -> np.ndarray:
+    """The indices of the ``n`` elements that :func:`_near_symmetry_rounds`' dropping leaves."""
+    if not rounds:
+        return np.arange(n)
+    idx, coset = rounds[-1]
+    return idx[~coset]
+
+
 def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_mirrors: str,
                           diag: GroupDiagnostics, approximate: bool = False,
                           exact: float = EXACT_ENOUGH * GroupConfig.max_distortion
@@ -721,8 +730,7 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
     if said:
         diag = replace(diag, near_symmetry_coset=dropped)
         if near_mirrors == "drop":
-            idx, coset = rounds[-1]
-            keep = idx[~coset]
+            keep = _survivors(rounds, len(elements))
             table = _subtable(table, keep)
             elements = [elements[i] for i in keep]
             rev = [rev[i] for i in keep]
@@ -740,29 +748,33 @@ def _drop_near_symmetries(elements: list[Element], table, rev: list[bool], near_
 
 
 def _whole_closed_subset(options: list[tuple[list[int], Tensor]], dist: np.ndarray, scores: list[float],
-                         near_mirrors: str, approximate: bool, exact: float) -> tuple[list[int], Tensor]:
+                         near_mirrors: str, approximate: bool, exact: float
+                         ) -> tuple[list[int], Tensor, Tensor]:
     """Of :func:`~symtorch.groups.from_maps.closed_subsets`, the one that keeps the most elements
-    after :func:`near_symmetry_coset` (the first, the cheapest greedy set, among equals): two
+    after :func:`near_symmetry_coset` (the first, the cheapest greedy set, among equals), with its
+    orientation flags (``groups.consistent_orientation`` of the votes ``scores``): two
     near-mirrors of a bent chiral shape's half turn close a group of four with it as its quarter
     turns do, and come first where they are cheaper, yet ride on it as a near-symmetry the coset
-    rule strips, while the quarter turns are whole."""
+    rule strips, while the quarter turns are whole.
+
+    Returns:
+        (indices kept, [G', G'] table among them, [G'] bool orientation-reversing flags).
+    """
+    revs = [consistent_orientation(table, [scores[i] for i in keep]) for keep, table in options]
     if len(options) == 1:
-        return options[0]
-    drop = near_mirrors == "drop"
+        return (*options[0], revs[0])
 
-    def kept(option) -> int:
+    def kept(option, rev) -> int:
         keep, table = option
-        rev = consistent_orientation(table, [scores[i] for i in keep]).numpy()
-        rounds = _near_symmetry_rounds(table, dist[keep], rev, approximate, exact, drop)
-        if not (rounds and drop):
+        if near_mirrors != "drop":
             return len(keep)
-        idx, coset = rounds[-1]
-        return int((~coset).sum())
+        rounds = _near_symmetry_rounds(table, dist[keep], rev.numpy(), approximate, exact)
+        return len(_survivors(rounds, len(keep)))
 
-    sizes = [kept(o) for o in options]
+    sizes = [kept(o, r) for o, r in zip(options, revs)]
     best = int(np.argmax(sizes))
     log.debug("closed subsets %s kept %s", [o[0] for o in options], sizes)
-    return options[best]
+    return (*options[best], revs[best])
 
 
 def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: GroupDiagnostics,
@@ -788,12 +800,11 @@ def group_of_elements(elements: list[Element], geo: Geometry, faces, diag: Group
     dist = np.asarray([e.distortion for e in elements])
     scores = [orientation_score(e.p2p, x_unit, faces_t) for e in elements]
     options = closed_subsets([e.p2p for e in elements], list(dist), x_unit, geo.score_samples)
-    keep, table = _whole_closed_subset(options, dist, scores, near_mirrors, approximate,
-                                       EXACT_ENOUGH * max_distortion)
+    keep, table, rev = _whole_closed_subset(options, dist, scores, near_mirrors, approximate,
+                                            EXACT_ENOUGH * max_distortion)
     if len(keep) < len(elements):
         diag = replace(diag, dropped=sorted(set(range(len(elements))) - set(keep)))
     elements = [elements[i] for i in keep]
-    rev = consistent_orientation(table, [scores[i] for i in keep])
     if solver is not None and coset_spread(table, [e.distortion for e in elements]) > PRECISE_SPREAD:
         elements = point_map_distortions(elements, geo, solver)
     elements, table, rev, diag = _drop_near_symmetries(elements, table, list(rev), near_mirrors, diag, approximate,

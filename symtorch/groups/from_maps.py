@@ -75,7 +75,9 @@ def largest_subgroup(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, 
     Returns:
         (indices kept, [G', G'] long table among them, renumbered in the order kept).
     """
-    return closed_subsets(p2ps, cost, verts_unit, samples, tol, same_tol)[0]
+    T, ok, rep, order = _matched_table(p2ps, cost, verts_unit, samples, tol, same_tol)
+    group = _greedy_closed(T, ok, rep, order)
+    return group, torch.as_tensor(_subtable(T, np.asarray(group)), dtype=torch.long)
 
 
 def closed_subsets(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
@@ -88,6 +90,24 @@ def closed_subsets(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, sa
     Returns:
         [(indices kept, [G', G'] long table among them)], the first :func:`largest_subgroup`'s.
     """
+    T, ok, rep, order = _matched_table(p2ps, cost, verts_unit, samples, tol, same_tol)
+    e = order[0]
+    first = _greedy_closed(T, ok, rep, order)
+    found = [first]
+    for seed in order[1:]:
+        if rep[seed] != seed or seed in first:
+            continue
+        group = _greedy_closed(T, ok, rep, [e, seed] + [i for i in order[1:] if i != seed])
+        if len(group) > 1 and all(sorted(group) != sorted(g) for g in found):
+            found.append(group)
+    return [(g, torch.as_tensor(_subtable(T, np.asarray(g)), dtype=torch.long)) for g in found]
+
+
+def _matched_table(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, samples: Tensor,
+                   tol: float, same_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """What :func:`largest_subgroup`'s greedy sets are grown from: (the [G, G] map table with every
+    duplicate read as its representative, [G, G] bool products matched within ``tol``, [G] the
+    representative of each element, the identity then the elements by ``cost``)."""
     T, gap = (x.numpy() for x in map_table(p2ps, verts_unit, samples))
     log.debug("map table %s gaps %s", T.tolist(), np.round(gap, 2).tolist())
     pos = verts_unit[torch.stack(p2ps)[:, samples]]  # [G, S, 3]
@@ -107,15 +127,7 @@ def closed_subsets(p2ps: list[Tensor], cost: list[float], verts_unit: Tensor, sa
             rep[[j for j in order if rep[j] == j and j != i and same[i, j]]] = i
     T = rep[T]
     ok = gap <= tol
-    first = _greedy_closed(T, ok, rep, order)
-    found = [first]
-    for seed in order[1:]:
-        if rep[seed] != seed or seed in first:
-            continue
-        group = _greedy_closed(T, ok, rep, [e, seed] + [i for i in order[1:] if i != seed])
-        if len(group) > 1 and all(sorted(group) != sorted(g) for g in found):
-            found.append(group)
-    return [(g, torch.as_tensor(_subtable(T, np.asarray(g)), dtype=torch.long)) for g in found]
+    return T, ok, rep, order
 
 
 def _greedy_closed(T: np.ndarray, ok: np.ndarray, rep: np.ndarray, order: list[int]) -> list[int]:
